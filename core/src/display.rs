@@ -1,0 +1,152 @@
+//! The display model: triangle meshes as the artist made them, independent of any file format.
+//!
+//! Importers produce an [`ImportedScene`]; the solver reads world-space positions from it; the
+//! exporters write baked frames back into the same meshes. Positions are stored in each mesh's
+//! local frame, exactly as in the source file, with `world_from_local` placing them in the
+//! source's world (in source units; multiply by `meters_per_unit` for metres).
+
+use nalgebra::{Matrix4, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Which source axis points up. glTF and OBJ are +Y up; Blender's USD export is +Z up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    #[default]
+    Y,
+    Z,
+}
+
+impl UpAxis {
+    /// Unit vector of the up direction in source world coordinates.
+    pub fn vector(self) -> Vector3<f64> {
+        match self {
+            UpAxis::Y => Vector3::y(),
+            UpAxis::Z => Vector3::z(),
+        }
+    }
+
+    /// Index of the up component (1 for Y, 2 for Z).
+    pub fn index(self) -> usize {
+        match self {
+            UpAxis::Y => 1,
+            UpAxis::Z => 2,
+        }
+    }
+}
+
+/// One indexed triangle list with its vertex attributes, as one glTF primitive / one OBJ
+/// material group / one USD mesh subset.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Primitive {
+    /// Vertex positions in the mesh's local frame, source units.
+    pub positions: Vec<[f32; 3]>,
+    /// Per-vertex normals in the local frame, when the source had them.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Per-vertex texture coordinates (first set), when the source had them.
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// Triangle list: three indices into `positions` per triangle.
+    pub indices: Vec<u32>,
+    /// Material name, when the source named one.
+    pub material: Option<String>,
+}
+
+impl Primitive {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+}
+
+/// A mesh placed in the scene: the unit the solver simulates as one body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DisplayMesh {
+    /// Human-readable name (node or object name).
+    pub name: String,
+    /// Handle the exporter of the same format uses to find this mesh in the source document:
+    /// glTF `"node:<index>"`, USD the prim path, OBJ `"object:<index>"`.
+    pub source_key: String,
+    /// Places local positions in the source's world frame (source units).
+    pub world_from_local: Matrix4<f64>,
+    pub primitives: Vec<Primitive>,
+}
+
+impl DisplayMesh {
+    /// Total vertex count over all primitives.
+    pub fn vertex_count(&self) -> usize {
+        self.primitives.iter().map(|p| p.positions.len()).sum()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.primitives.iter().map(Primitive::triangle_count).sum()
+    }
+
+    /// All vertices, primitive after primitive, in world coordinates (source units).
+    pub fn world_positions(&self) -> Vec<Point3<f64>> {
+        let m = self.world_from_local;
+        self.primitives
+            .iter()
+            .flat_map(|p| p.positions.iter())
+            .map(|q| m.transform_point(&Point3::new(q[0] as f64, q[1] as f64, q[2] as f64)))
+            .collect()
+    }
+
+    /// All triangles as indices into [`DisplayMesh::world_positions`].
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let mut out = Vec::with_capacity(self.triangle_count());
+        let mut base = 0u32;
+        for p in &self.primitives {
+            out.extend(
+                p.indices
+                    .chunks_exact(3)
+                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+            );
+            base += p.positions.len() as u32;
+        }
+        out
+    }
+}
+
+/// Which file a scene came from, so an exporter of the same format can keep the source document.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceDocument {
+    pub path: PathBuf,
+    /// Name of the importer that read it (`"gltf"`, `"obj"`, `"usd"`).
+    pub importer: String,
+}
+
+/// Everything an importer hands over.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportedScene {
+    pub meshes: Vec<DisplayMesh>,
+    pub up_axis: UpAxis,
+    /// Size of one source unit in metres (glTF: 1; USD: the stage's metersPerUnit).
+    pub meters_per_unit: f64,
+    pub source: SourceDocument,
+}
+
+/// Smooth per-vertex normals of a triangle list (area weighted), for meshes without normals
+/// and for the NORMAL deltas of baked frames.
+pub fn vertex_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> {
+    let mut acc = vec![Vector3::<f64>::zeros(); positions.len()];
+    let p = |i: u32| {
+        let q = positions[i as usize];
+        Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64)
+    };
+    for t in indices.chunks_exact(3) {
+        let n = (p(t[1]) - p(t[0])).cross(&(p(t[2]) - p(t[0])));
+        for &i in t {
+            acc[i as usize] += n;
+        }
+    }
+    acc.into_iter()
+        .map(|n| {
+            let len = n.norm();
+            if len > 0.0 {
+                [(n.x / len) as f32, (n.y / len) as f32, (n.z / len) as f32]
+            } else {
+                [0.0, 0.0, 1.0]
+            }
+        })
+        .collect()
+}

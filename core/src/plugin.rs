@@ -1,0 +1,190 @@
+//! Plug-in points: importers and exporters register on a [`Registry`] that the host (CLI,
+//! watcher, viewer) queries, the way a DCC's plug-in host does. A [`Plugin`] only registers
+//! things; the built-in formats arrive as plugins exactly like a third-party crate would.
+
+use crate::bake::BakedScene;
+use crate::display::ImportedScene;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What kind of failure an import or export is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IoErrorKind {
+    /// The file is not this plug-in's format (e.g. wrong magic); the host may try another.
+    Incompatible,
+    /// The file is this format but broken, hostile or unsupported: the user's input is at fault.
+    Invalid,
+    /// Reading or writing failed at the operating-system level.
+    Io,
+    /// A tool the plug-in needs (e.g. Python's `usd-core`) is not available.
+    MissingDependency,
+}
+
+/// An import or export failure that says where: the file, and inside it a data path or line.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{}{}: {message}", path.display(), location.as_ref().map(|l| format!(": {l}")).unwrap_or_default())]
+pub struct PluginError {
+    pub kind: IoErrorKind,
+    pub path: PathBuf,
+    /// Where in the file: `meshes[0].primitives[1].attributes.POSITION`, `line 17`, a prim path.
+    pub location: Option<String>,
+    pub message: String,
+}
+
+impl PluginError {
+    pub fn new(kind: IoErrorKind, path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        PluginError {
+            kind,
+            path: path.into(),
+            location: None,
+            message: message.into(),
+        }
+    }
+
+    pub fn invalid(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Self::new(IoErrorKind::Invalid, path, message)
+    }
+
+    pub fn at(mut self, location: impl Into<String>) -> Self {
+        self.location = Some(location.into());
+        self
+    }
+}
+
+/// Import options shared by all importers.
+#[derive(Debug, Clone, Default)]
+pub struct ImportSettings {
+    /// OBJ: merge all `o`/`g` groups into one body instead of one body per object.
+    pub merge_objects: bool,
+}
+
+/// Reads a file into the display model.
+pub trait Importer: Send + Sync {
+    /// Short stable name, e.g. `"gltf"`.
+    fn name(&self) -> &str;
+    /// Lower-case file extensions without the dot, e.g. `["gltf", "glb"]`.
+    fn extensions(&self) -> &[&str];
+    /// Import `bytes`, read from `path`. Importers may read sibling resources next to `path`
+    /// (external buffers) but must refuse any that leave `path`'s folder.
+    fn import(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        settings: &ImportSettings,
+    ) -> Result<ImportedScene, PluginError>;
+}
+
+/// Which kind of cache an exporter should write when a format offers several.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CacheKind {
+    /// Morph targets / per-frame points (the default).
+    #[default]
+    Morph,
+    /// The lattice as a skeleton, the mesh skinned to it (glTF only).
+    Skin,
+}
+
+/// Export options.
+#[derive(Debug, Clone)]
+pub struct ExportSettings {
+    pub path: PathBuf,
+    pub cache: CacheKind,
+}
+
+/// One file an exporter produced. The host writes all of them atomically (temp file + rename).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputFile {
+    pub path: PathBuf,
+    pub bytes: Vec<u8>,
+}
+
+/// Writes a bake. Returns the files instead of writing them so hosts control atomicity and
+/// tests stay off the filesystem.
+pub trait Exporter: Send + Sync {
+    fn name(&self) -> &str;
+    fn extensions(&self) -> &[&str];
+    fn export(
+        &self,
+        scene: &ImportedScene,
+        baked: &BakedScene,
+        settings: &ExportSettings,
+    ) -> Result<Vec<OutputFile>, PluginError>;
+}
+
+/// Something that registers importers and exporters on a host.
+pub trait Plugin {
+    fn build(&self, registry: &mut Registry);
+}
+
+/// The host's table of plug-ins.
+#[derive(Default, Clone)]
+pub struct Registry {
+    importers: Vec<Arc<dyn Importer>>,
+    exporters: Vec<Arc<dyn Exporter>>,
+}
+
+fn extension_of(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+}
+
+impl Registry {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn add_plugin(&mut self, plugin: &dyn Plugin) -> &mut Self {
+        plugin.build(self);
+        self
+    }
+
+    pub fn register_importer(&mut self, importer: impl Importer + 'static) -> &mut Self {
+        self.importers.push(Arc::new(importer));
+        self
+    }
+
+    pub fn register_exporter(&mut self, exporter: impl Exporter + 'static) -> &mut Self {
+        self.exporters.push(Arc::new(exporter));
+        self
+    }
+
+    pub fn importers(&self) -> &[Arc<dyn Importer>] {
+        &self.importers
+    }
+
+    pub fn exporters(&self) -> &[Arc<dyn Exporter>] {
+        &self.exporters
+    }
+
+    /// The importer registered for `path`'s extension.
+    pub fn importer_for(&self, path: &Path) -> Option<&Arc<dyn Importer>> {
+        let ext = extension_of(path)?;
+        self.importers
+            .iter()
+            .find(|i| i.extensions().contains(&ext.as_str()))
+    }
+
+    /// The exporter registered for `path`'s extension.
+    pub fn exporter_for(&self, path: &Path) -> Option<&Arc<dyn Exporter>> {
+        let ext = extension_of(path)?;
+        self.exporters
+            .iter()
+            .find(|e| e.extensions().contains(&ext.as_str()))
+    }
+
+    /// Every extension some importer reads, for error messages.
+    pub fn import_extensions(&self) -> Vec<String> {
+        self.importers
+            .iter()
+            .flat_map(|i| i.extensions().iter().map(|e| e.to_string()))
+            .collect()
+    }
+
+    pub fn export_extensions(&self) -> Vec<String> {
+        self.exporters
+            .iter()
+            .flat_map(|e| e.extensions().iter().map(|x| x.to_string()))
+            .collect()
+    }
+}

@@ -1,0 +1,435 @@
+//! The scene description: the TOML file a user writes (documented in `docs/scene.md`).
+//!
+//! Parsing is strict: an unknown key is an error with its line and column and the valid keys
+//! (serde's `deny_unknown_fields` through the `toml` crate). Paths stay as written; the host
+//! resolves them relative to the scene file.
+
+use crate::display::UpAxis;
+use crate::material::{Material, MaterialError};
+use serde::de::{self, MapAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize};
+use std::fmt;
+use std::path::PathBuf;
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default)]
+    pub output: OutputSection,
+    #[serde(default)]
+    pub world: WorldSection,
+    #[serde(default)]
+    pub solver: SolverSection,
+    #[serde(default)]
+    pub body: Vec<BodySection>,
+    #[serde(default)]
+    pub manipulator: Vec<ManipulatorSection>,
+}
+
+/// `[output]`
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// Output file; the format comes from the extension.
+    #[serde(default = "default_output_path")]
+    pub path: PathBuf,
+    #[serde(default = "default_fps")]
+    pub fps: f64,
+    #[serde(default = "default_frames")]
+    pub frames: usize,
+    /// `"morph"` (default) or `"skin"` (lattice-as-skin glTF).
+    #[serde(default)]
+    pub cache: CacheSpec,
+}
+
+fn default_output_path() -> PathBuf {
+    PathBuf::from("baked.glb")
+}
+fn default_fps() -> f64 {
+    24.0
+}
+fn default_frames() -> usize {
+    48
+}
+
+impl Default for OutputSection {
+    fn default() -> Self {
+        OutputSection {
+            path: default_output_path(),
+            fps: default_fps(),
+            frames: default_frames(),
+            cache: CacheSpec::default(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CacheSpec {
+    #[default]
+    Morph,
+    Skin,
+}
+
+/// `[world]`
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldSection {
+    /// m/s², along minus the up axis.
+    #[serde(default = "default_gravity")]
+    pub gravity: f64,
+    /// Floor height along up, in source units; `None` (key omitted): no floor.
+    #[serde(default)]
+    pub floor: Option<f64>,
+    /// Coulomb friction coefficient on the floor and walls.
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Overrides the source's up axis.
+    #[serde(default)]
+    pub up: Option<UpAxis>,
+    /// Optional room walls: an axis-aligned box (source units) whose four side planes are rigid
+    /// surfaces with elastic layers.
+    #[serde(default)]
+    pub walls: Option<RoomSpec>,
+    /// Elastic-layer thickness in metres; default: half a lattice cell.
+    #[serde(default)]
+    pub contact_thickness: Option<f64>,
+    /// Elastic-layer stiffness in N/m per node; default: from the body's springs.
+    #[serde(default)]
+    pub contact_stiffness: Option<f64>,
+}
+
+fn default_gravity() -> f64 {
+    9.81
+}
+fn default_friction() -> f64 {
+    0.4
+}
+
+impl Default for WorldSection {
+    fn default() -> Self {
+        WorldSection {
+            gravity: default_gravity(),
+            floor: None,
+            friction: default_friction(),
+            up: None,
+            walls: None,
+            contact_thickness: None,
+            contact_stiffness: None,
+        }
+    }
+}
+
+/// `[world.walls]`: the room's side walls.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoomSpec {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+/// `[solver]`
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSection {
+    #[serde(default)]
+    pub substeps: SubstepSpec,
+    /// The velocity-dispersion (fusion) model of Miyazaki et al. 1996 §3.
+    #[serde(default = "default_true")]
+    pub dispersion: bool,
+    /// N in ΔT < T_s / N (physics §4).
+    #[serde(default = "default_accuracy_n")]
+    pub accuracy_n: f64,
+    /// Cap on dispersion sweeps per step; hitting it is reported.
+    #[serde(default = "default_dispersion_iterations")]
+    pub max_dispersion_iterations: u32,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_accuracy_n() -> f64 {
+    10.0
+}
+fn default_dispersion_iterations() -> u32 {
+    32
+}
+
+impl Default for SolverSection {
+    fn default() -> Self {
+        SolverSection {
+            substeps: SubstepSpec::Auto,
+            dispersion: true,
+            accuracy_n: default_accuracy_n(),
+            max_dispersion_iterations: default_dispersion_iterations(),
+        }
+    }
+}
+
+/// `substeps = "auto"` or a positive integer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+pub enum SubstepSpec {
+    #[default]
+    Auto,
+    Fixed(u32),
+}
+
+impl<'de> Deserialize<'de> for SubstepSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = SubstepSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("\"auto\" or a positive integer")
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<SubstepSpec, E> {
+                if s == "auto" {
+                    Ok(SubstepSpec::Auto)
+                } else {
+                    Err(E::invalid_value(de::Unexpected::Str(s), &self))
+                }
+            }
+            fn visit_i64<E: de::Error>(self, n: i64) -> Result<SubstepSpec, E> {
+                if n >= 1 && n <= u32::MAX as i64 {
+                    Ok(SubstepSpec::Fixed(n as u32))
+                } else {
+                    Err(E::invalid_value(de::Unexpected::Signed(n), &self))
+                }
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `[[body]]`
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySection {
+    /// Mesh file, relative to the scene file.
+    pub source: PathBuf,
+    /// Lattice cells along the longest side of the mesh's bounding box.
+    #[serde(default)]
+    pub cells: Option<u32>,
+    /// Alternatively, the cell edge in metres.
+    #[serde(default)]
+    pub cell_size: Option<f64>,
+    #[serde(default)]
+    pub material: MaterialSpec,
+    /// Moves the mesh before simulating (source units, world frame).
+    #[serde(default)]
+    pub offset: [f64; 3],
+    /// Initial velocity, m/s, world frame.
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// Spring arrangement (physics §2).
+    #[serde(default)]
+    pub springs: crate::lattice::SpringLayout,
+}
+
+pub const DEFAULT_CELLS: u32 = 10;
+
+/// A material preset name or an inline table of values.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum MaterialSpec {
+    Preset(String),
+    Custom(CustomMaterial),
+}
+
+impl Default for MaterialSpec {
+    fn default() -> Self {
+        MaterialSpec::Preset("rubber".into())
+    }
+}
+
+impl MaterialSpec {
+    pub fn resolve(&self) -> Result<Material, MaterialError> {
+        match self {
+            MaterialSpec::Preset(name) => Material::preset(name),
+            MaterialSpec::Custom(c) => Material::new(
+                "custom",
+                c.young,
+                c.poisson.unwrap_or(0.45),
+                c.density,
+                c.damping.unwrap_or(0.05),
+            ),
+        }
+    }
+}
+
+/// `material = { young = 2e5, density = 1000, poisson = 0.45, damping = 0.05 }`
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CustomMaterial {
+    /// Young's modulus, Pa.
+    pub young: f64,
+    /// Density, kg/m³.
+    pub density: f64,
+    #[serde(default)]
+    pub poisson: Option<f64>,
+    /// Damping ratio (1 = critical).
+    #[serde(default)]
+    pub damping: Option<f64>,
+}
+
+impl<'de> Deserialize<'de> for MaterialSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = MaterialSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a preset name or a table { young, density, poisson, damping }")
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<MaterialSpec, E> {
+                Ok(MaterialSpec::Preset(s.to_owned()))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<MaterialSpec, A::Error> {
+                CustomMaterial::deserialize(de::value::MapAccessDeserializer::new(map))
+                    .map(MaterialSpec::Custom)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `[[manipulator]]`: a scripted rigid capsule (physics §6).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManipulatorSection {
+    /// Capsule radius, metres.
+    pub radius: f64,
+    /// Length of the capsule's axis segment, metres.
+    pub length: f64,
+    pub keys: Vec<ManipulatorKey>,
+    #[serde(default)]
+    pub interpolation: Interpolation,
+    /// Coulomb friction on the capsule's surface.
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+}
+
+/// A manipulator keyframe: time, position of the capsule's centre, yaw about up (degrees).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManipulatorKey {
+    pub t: f64,
+    pub position: [f64; 3],
+    #[serde(default)]
+    pub yaw: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Interpolation {
+    #[default]
+    Linear,
+    Smooth,
+}
+
+/// A scene file that failed to parse, with line and column.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{message}")]
+pub struct SceneParseError {
+    pub message: String,
+    /// 1-based line and column of the offending key or value.
+    pub line: Option<usize>,
+    pub column: Option<usize>,
+}
+
+impl SceneFile {
+    /// Parse TOML text. Errors carry 1-based line and column.
+    pub fn parse(text: &str) -> Result<SceneFile, SceneParseError> {
+        toml::from_str::<SceneFile>(text).map_err(|e| {
+            let (line, column) = match e.span() {
+                Some(span) => {
+                    let before = &text[..span.start.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let column = before.len() - before.rfind('\n').map(|i| i + 1).unwrap_or(0) + 1;
+                    (Some(line), Some(column))
+                }
+                None => (None, None),
+            };
+            let message = e.message().to_owned();
+            SceneParseError {
+                message: match (line, column) {
+                    (Some(l), Some(c)) => format!("line {l}, column {c}: {message}"),
+                    _ => message,
+                },
+                line,
+                column,
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_the_documented_example() {
+        let s = SceneFile::parse(
+            r#"
+[output]
+path = "baked.glb"
+fps = 24
+frames = 48
+[world]
+gravity = 9.81
+floor = 0.0
+friction = 0.4
+[solver]
+substeps = "auto"
+dispersion = true
+[[body]]
+source = "suzanne.glb"
+cells = 10
+material = "rubber"
+offset = [0.0, 1.0, 0.0]
+velocity = [0.0, 0.0, 0.0]
+[[body]]
+source = "b.obj"
+material = { young = 2e5, density = 1000, poisson = 0.45, damping = 0.05 }
+"#,
+        )
+        .unwrap();
+        assert_eq!(s.output.frames, 48);
+        assert_eq!(s.world.floor, Some(0.0));
+        assert_eq!(s.solver.substeps, SubstepSpec::Auto);
+        assert_eq!(s.body.len(), 2);
+        assert_eq!(s.body[0].offset, [0.0, 1.0, 0.0]);
+        match &s.body[1].material {
+            MaterialSpec::Custom(c) => assert_eq!(c.young, 2e5),
+            other => panic!("expected custom material, got {other:?}"),
+        }
+        assert_eq!(s.body[1].material.resolve().unwrap().young_pa, 2e5);
+    }
+
+    #[test]
+    fn unknown_key_reports_line_column_and_valid_keys() {
+        let err = SceneFile::parse("[world]\ngravity = 9.81\nflor = 0.0\n").unwrap_err();
+        assert_eq!(err.line, Some(3));
+        assert_eq!(err.column, Some(1));
+        assert!(err.message.contains("flor"), "{}", err.message);
+        assert!(err.message.contains("floor"), "{}", err.message);
+    }
+
+    #[test]
+    fn unknown_key_in_inline_material_is_reported() {
+        let err = SceneFile::parse(
+            "[[body]]\nsource = \"a.glb\"\nmaterial = { young = 1e5, densty = 3 }\n",
+        )
+        .unwrap_err();
+        assert!(err.message.contains("densty"), "{}", err.message);
+        assert_eq!(err.line, Some(3));
+    }
+
+    #[test]
+    fn substeps_accepts_auto_or_positive_integer() {
+        let s = SceneFile::parse("[solver]\nsubsteps = 12\n").unwrap();
+        assert_eq!(s.solver.substeps, SubstepSpec::Fixed(12));
+        assert!(SceneFile::parse("[solver]\nsubsteps = 0\n").is_err());
+        assert!(SceneFile::parse("[solver]\nsubsteps = \"many\"\n").is_err());
+    }
+}

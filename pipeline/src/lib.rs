@@ -1,0 +1,1 @@
+//! The bake pipeline: scene file -> import -> fit -> simulate -> export.

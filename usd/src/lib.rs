@@ -1,0 +1,1 @@
+//! USD import and export through Python's `usd-core`, embedded with pyo3.

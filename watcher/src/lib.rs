@@ -1,0 +1,1 @@
+//! Watch mode: re-bake when the scene or any source changes.
