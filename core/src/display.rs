@@ -69,6 +69,13 @@ pub struct DisplayMesh {
     /// Places local positions in the source's world frame (source units).
     pub world_from_local: Matrix4<f64>,
     pub primitives: Vec<Primitive>,
+    /// For each vertex (primitive after primitive) the index of the point it came from in the
+    /// source's own vertex list: OBJ `v` lines of this object, USD `points`, glTF the vertex
+    /// itself. Caches that must follow the source's vertex order (PC2, MDD, USD `points`) write
+    /// one point per source point through this map. Empty means identity.
+    pub source_point_of_vertex: Vec<u32>,
+    /// Number of points in the source's own vertex list (the vertex count when the map is empty).
+    pub source_point_count: usize,
 }
 
 impl DisplayMesh {
@@ -79,6 +86,21 @@ impl DisplayMesh {
 
     pub fn triangle_count(&self) -> usize {
         self.primitives.iter().map(Primitive::triangle_count).sum()
+    }
+
+    /// Scatter per-vertex values (primitive after primitive) into the source's point order.
+    /// Points no vertex refers to keep `fill`.
+    pub fn to_source_points<T: Copy>(&self, per_vertex: &[T], fill: T) -> Vec<T> {
+        if self.source_point_of_vertex.is_empty() {
+            return per_vertex.to_vec();
+        }
+        let mut out = vec![fill; self.source_point_count];
+        for (v, &p) in self.source_point_of_vertex.iter().enumerate() {
+            if let (Some(slot), Some(&value)) = (out.get_mut(p as usize), per_vertex.get(v)) {
+                *slot = value;
+            }
+        }
+        out
     }
 
     /// All vertices, primitive after primitive, in world coordinates (source units).
