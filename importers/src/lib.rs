@@ -2,6 +2,7 @@
 
 use springbake_core::plugin::{Plugin, Registry};
 
+pub mod gltf;
 pub mod obj;
 
 /// Registers every built-in importer on a host's [`Registry`].
@@ -10,6 +11,7 @@ pub struct BuiltinImporters;
 
 impl Plugin for BuiltinImporters {
     fn build(&self, registry: &mut Registry) {
+        registry.register_importer(gltf::GltfImporter);
         registry.register_importer(obj::ObjImporter);
     }
 }
