@@ -1,1 +1,28 @@
 //! USD import and export through Python's `usd-core`, embedded with pyo3.
+//!
+//! [`UsdPlugin`] registers [`UsdImporter`] (`.usda`, `.usdc`, `.usdz`, `.usd`) and
+//! [`UsdExporter`] (`.usda`, `.usdc`, `.usd`). The Python side is one file, `usd_bridge.py`,
+//! compiled into the binary; [`python`] finds the virtual environment with usd-core and loads
+//! it; [`mesh`] holds the Rust-side geometry (triangulation, primvar expansion, normals).
+//! Bulk data crosses into and out of Python as flat byte arrays.
+
+pub mod export;
+pub mod import;
+pub mod mesh;
+pub mod python;
+
+pub use export::UsdExporter;
+pub use import::{read_stage, UsdImporter};
+
+use springbake_core::plugin::{Plugin, Registry};
+
+/// Registers the USD importer and exporter.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct UsdPlugin;
+
+impl Plugin for UsdPlugin {
+    fn build(&self, registry: &mut Registry) {
+        registry.register_importer(UsdImporter);
+        registry.register_exporter(UsdExporter);
+    }
+}

@@ -1,0 +1,433 @@
+//! The USD exporter: baked frames as `points` time samples.
+//!
+//! Time mapping: frame `i` (0-based) is written at time code `i`, with `timeCodesPerSecond` =
+//! `framesPerSecond` = the bake's fps, `startTimeCode` 0 and `endTimeCode` = frames − 1, so time
+//! code / timeCodesPerSecond equals [`BakedScene::frame_time`].
+//!
+//! * USD source (`scene.source.importer == "usd"`): the source stage is flattened into the
+//!   output (everything it had, composed into one layer); on each baked mesh prim `points` and
+//!   `extent` get one time sample per frame in the source's point order. Authored normals are
+//!   kept consistent: `vertex`/`varying` normals become per-frame smooth normals of the
+//!   deformed points; `faceVarying`, `uniform` and `constant` normals become per-frame
+//!   `faceVarying` normals that keep the rest normals' smoothing groups (hard edges stay hard).
+//!   A `primvars:normals` primvar is removed and replaced by the `normals` attribute.
+//! * Other sources: a new stage with `/root/<mesh>` Xforms carrying `world_from_local` and a
+//!   `mesh` child with triangles, time-sampled points, normals (vertex interpolation, when the
+//!   source had normals) and `st` (when every primitive had uvs).
+
+use crate::import::read_stage;
+use crate::mesh::{extent, face_varying_normals, point_normals, Interpolation, RawMesh};
+use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList};
+use springbake_core::bake::{BakedMesh, BakedScene};
+use springbake_core::display::{vertex_normals, DisplayMesh, ImportedScene, UpAxis};
+use springbake_core::plugin::{ExportSettings, Exporter, IoErrorKind, OutputFile, PluginError};
+use std::collections::HashSet;
+use std::path::Path;
+
+/// Per mesh, everything the bridge's `_author_frames` needs, as flat little-endian arrays.
+struct Frames {
+    point_count: usize,
+    points: Vec<u8>,
+    extents: Vec<u8>,
+    normals: Option<(Vec<u8>, usize, &'static str)>,
+}
+
+fn check_frames(
+    baked: &BakedMesh,
+    mesh: &DisplayMesh,
+    frame_count: usize,
+    out: &Path,
+) -> Result<(), PluginError> {
+    let n = mesh.vertex_count();
+    if baked.frames.len() != frame_count {
+        return Err(PluginError::invalid(
+            out,
+            format!(
+                "bake has {} frames for mesh {:?}, the scene says {frame_count}",
+                baked.frames.len(),
+                mesh.name
+            ),
+        ));
+    }
+    if let Some((f, frame)) = baked.frames.iter().enumerate().find(|(_, fr)| fr.len() != n) {
+        return Err(PluginError::invalid(
+            out,
+            format!(
+                "frame {f} of mesh {:?} has {} vertices, the mesh has {n}",
+                mesh.name,
+                frame.len()
+            ),
+        ));
+    }
+    if let Some(f) = baked
+        .frames
+        .iter()
+        .position(|fr| fr.iter().any(|p| !p.iter().all(|c| c.is_finite())))
+    {
+        return Err(PluginError::invalid(
+            out,
+            format!("frame {f} of mesh {:?} has non-finite positions", mesh.name),
+        ));
+    }
+    Ok(())
+}
+
+/// Frames of a mesh that came from a USD stage, in the stage's point order.
+fn source_frames(
+    baked: &BakedMesh,
+    mesh: &DisplayMesh,
+    raw: &RawMesh,
+    out: &Path,
+) -> Result<Frames, PluginError> {
+    let n = raw.points.len();
+    if mesh.source_point_count != n
+        || (mesh.source_point_of_vertex.is_empty() && mesh.vertex_count() != n)
+    {
+        return Err(PluginError::invalid(
+            out,
+            format!(
+                "the source mesh has {n} points but was imported with {}; was the source file \
+                 changed since the import?",
+                mesh.source_point_count
+            ),
+        )
+        .at(raw.path.clone()));
+    }
+    let rest: Vec<[f32; 3]> = raw.points.iter().map(|p| p.map(|c| c as f32)).collect();
+    let rest_fv: Option<Vec<[f32; 3]>> = raw.normals.as_ref().map(|nv| {
+        let mut fv = 0usize;
+        let mut out = Vec::with_capacity(raw.indices.len());
+        for (face, &c) in raw.counts.iter().enumerate() {
+            for _ in 0..c {
+                let point = raw.indices[fv] as usize;
+                let e = 3 * match nv.interpolation {
+                    Interpolation::Constant => 0,
+                    Interpolation::Uniform => face,
+                    Interpolation::Vertex => point,
+                    Interpolation::FaceVarying => fv,
+                };
+                out.push([nv.values[e] as f32, nv.values[e + 1] as f32, nv.values[e + 2] as f32]);
+                fv += 1;
+            }
+        }
+        out
+    });
+    let vertex_normals_wanted = raw
+        .normals
+        .as_ref()
+        .is_some_and(|nv| nv.interpolation == Interpolation::Vertex);
+    let mut points = Vec::with_capacity(baked.frames.len() * n * 12);
+    let mut extents = Vec::new();
+    let mut normals_bytes = Vec::new();
+    for frame in &baked.frames {
+        let mut pts = rest.clone();
+        if mesh.source_point_of_vertex.is_empty() {
+            pts.copy_from_slice(frame);
+        } else {
+            for (v, &p) in mesh.source_point_of_vertex.iter().enumerate() {
+                if let (Some(slot), Some(&q)) = (pts.get_mut(p as usize), frame.get(v)) {
+                    *slot = q;
+                }
+            }
+        }
+        points.extend(f32_bytes(pts.iter().flatten().copied()));
+        extents.extend(f32_bytes(extent(&pts)));
+        if let Some(rest_fv) = &rest_fv {
+            let normals = if vertex_normals_wanted {
+                point_normals(&pts, &raw.counts, &raw.indices)
+            } else {
+                face_varying_normals(&pts, &raw.counts, &raw.indices, rest_fv)
+            };
+            normals_bytes.extend(f32_bytes(normals.iter().flatten().copied()));
+        }
+    }
+    let normals = rest_fv.map(|_| {
+        if vertex_normals_wanted {
+            (normals_bytes, n, "vertex")
+        } else {
+            (normals_bytes, raw.indices.len(), "faceVarying")
+        }
+    });
+    Ok(Frames {
+        point_count: n,
+        points,
+        extents,
+        normals,
+    })
+}
+
+fn frames_dict<'py>(py: Python<'py>, f: &Frames) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("point_count", f.point_count)?;
+    d.set_item("points", PyBytes::new(py, &f.points))?;
+    d.set_item("extents", PyBytes::new(py, &f.extents))?;
+    match &f.normals {
+        Some((bytes, count, interpolation)) => {
+            d.set_item("normals", PyBytes::new(py, bytes))?;
+            d.set_item("normal_count", *count)?;
+            d.set_item("normals_interpolation", *interpolation)?;
+        }
+        None => d.set_item("normals", py.None())?,
+    }
+    Ok(d)
+}
+
+/// A prim name from a mesh name: letters, digits and `_`, not starting with a digit, unique.
+pub fn prim_name(name: &str, taken: &mut HashSet<String>) -> String {
+    let mut base: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if base.is_empty() || base.starts_with(|c: char| c.is_ascii_digit()) {
+        base.insert_str(0, "mesh_");
+    }
+    let mut candidate = base.clone();
+    let mut k = 1;
+    while !taken.insert(candidate.clone()) {
+        candidate = format!("{base}_{k}");
+        k += 1;
+    }
+    candidate
+}
+
+/// Frames of a mesh from a non-USD source, in display-vertex order.
+fn display_frames(baked: &BakedMesh, mesh: &DisplayMesh) -> Frames {
+    let triangles: Vec<u32> = mesh.triangles().into_iter().flatten().collect();
+    let had_normals = mesh.primitives.iter().any(|p| p.normals.is_some());
+    let n = mesh.vertex_count();
+    let mut points = Vec::new();
+    let mut extents = Vec::new();
+    let mut normals = Vec::new();
+    for frame in &baked.frames {
+        points.extend(f32_bytes(frame.iter().flatten().copied()));
+        extents.extend(f32_bytes(extent(frame)));
+        if had_normals {
+            normals.extend(f32_bytes(
+                vertex_normals(frame, &triangles).into_iter().flatten(),
+            ));
+        }
+    }
+    Frames {
+        point_count: n,
+        points,
+        extents,
+        normals: had_normals.then_some((normals, n, "vertex")),
+    }
+}
+
+fn output_extension(path: &Path) -> Result<&'static str, PluginError> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("usda") => Ok("usda"),
+        Some("usdc") => Ok("usdc"),
+        Some("usd") => Ok("usd"),
+        _ => Err(PluginError::invalid(
+            path,
+            "USD export writes .usda, .usdc or .usd (usdz is read-only here)",
+        )),
+    }
+}
+
+/// Writes baked frames as USD `points` time samples.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct UsdExporter;
+
+impl UsdExporter {
+    fn write(
+        &self,
+        scene: &ImportedScene,
+        baked: &BakedScene,
+        out: &Path,
+        temp: &Path,
+    ) -> Result<(), PluginError> {
+        if !(baked.fps.is_finite() && baked.fps > 0.0) {
+            return Err(PluginError::invalid(out, format!("fps {} is not positive", baked.fps)));
+        }
+        let mut items = Vec::new();
+        for bm in &baked.meshes {
+            let mesh = scene.meshes.get(bm.mesh_index).ok_or_else(|| {
+                PluginError::invalid(
+                    out,
+                    format!(
+                        "baked mesh refers to mesh {} but the scene has {}",
+                        bm.mesh_index,
+                        scene.meshes.len()
+                    ),
+                )
+            })?;
+            check_frames(bm, mesh, baked.frame_count, out)?;
+            items.push((bm, mesh));
+        }
+        if scene.source.importer == "usd" {
+            let source = &scene.source.path;
+            let stage = read_stage(source)?;
+            let mut prepared = Vec::new();
+            for (bm, mesh) in &items {
+                let raw = stage
+                    .meshes
+                    .iter()
+                    .find(|m| m.path == mesh.source_key)
+                    .ok_or_else(|| {
+                        PluginError::invalid(source, "the source stage has no mesh at this path")
+                            .at(mesh.source_key.clone())
+                    })?;
+                let frames = source_frames(bm, mesh, raw, out)?;
+                let drop_primvar = raw.normals_source.as_deref() == Some("primvars:normals");
+                prepared.push((raw.path.clone(), frames, drop_primvar));
+            }
+            with_bridge(out, |py, bridge| {
+                let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Io, out);
+                let spec = PyDict::new(py);
+                let list = PyList::empty(py);
+                for (prim_path, frames, drop_primvar) in &prepared {
+                    let d = frames_dict(py, frames).map_err(to_err)?;
+                    d.set_item("prim_path", prim_path).map_err(to_err)?;
+                    d.set_item("drop_primvar_normals", *drop_primvar).map_err(to_err)?;
+                    list.append(d).map_err(to_err)?;
+                }
+                spec.set_item("meshes", list).map_err(to_err)?;
+                spec.set_item("fps", baked.fps).map_err(to_err)?;
+                spec.set_item("frame_count", baked.frame_count).map_err(to_err)?;
+                bridge
+                    .call_method1(
+                        "write_source_stage",
+                        (
+                            source.to_string_lossy().into_owned(),
+                            temp.to_string_lossy().into_owned(),
+                            spec,
+                        ),
+                    )
+                    .map_err(to_err)?;
+                Ok(())
+            })
+        } else {
+            let mut taken = HashSet::new();
+            with_bridge(out, |py, bridge| {
+                let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Io, out);
+                let list = PyList::empty(py);
+                for (bm, mesh) in &items {
+                    let frames = display_frames(bm, mesh);
+                    let d = frames_dict(py, &frames).map_err(to_err)?;
+                    d.set_item("name", prim_name(&mesh.name, &mut taken))
+                        .map_err(to_err)?;
+                    // nalgebra stores column-major: M's columns are Gf's rows (Mᵀ row-major).
+                    let world: Vec<u8> = mesh
+                        .world_from_local
+                        .as_slice()
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect();
+                    d.set_item("world", PyBytes::new(py, &world)).map_err(to_err)?;
+                    let tris = mesh.triangles();
+                    d.set_item("counts", PyBytes::new(py, &i32_bytes(tris.iter().map(|_| 3))))
+                        .map_err(to_err)?;
+                    d.set_item(
+                        "indices",
+                        PyBytes::new(py, &i32_bytes(tris.iter().flatten().map(|&i| i as i32))),
+                    )
+                    .map_err(to_err)?;
+                    let rest = mesh.primitives.iter().flat_map(|p| p.positions.iter());
+                    d.set_item(
+                        "rest_points",
+                        PyBytes::new(py, &f32_bytes(rest.flatten().copied())),
+                    )
+                    .map_err(to_err)?;
+                    if mesh.primitives.iter().all(|p| p.uvs.is_some()) {
+                        let uvs = mesh.primitives.iter().flat_map(|p| {
+                            p.uvs.iter().flatten().flat_map(|t| t.iter().copied())
+                        });
+                        d.set_item("uvs", PyBytes::new(py, &f32_bytes(uvs)))
+                            .map_err(to_err)?;
+                    } else {
+                        d.set_item("uvs", py.None()).map_err(to_err)?;
+                    }
+                    list.append(d).map_err(to_err)?;
+                }
+                let spec = PyDict::new(py);
+                spec.set_item("meshes", list).map_err(to_err)?;
+                spec.set_item("fps", baked.fps).map_err(to_err)?;
+                spec.set_item("frame_count", baked.frame_count).map_err(to_err)?;
+                spec.set_item(
+                    "up_axis",
+                    match scene.up_axis {
+                        UpAxis::Y => "Y",
+                        UpAxis::Z => "Z",
+                    },
+                )
+                .map_err(to_err)?;
+                spec.set_item("meters_per_unit", scene.meters_per_unit)
+                    .map_err(to_err)?;
+                bridge
+                    .call_method1(
+                        "write_new_stage",
+                        (temp.to_string_lossy().into_owned(), spec),
+                    )
+                    .map_err(to_err)?;
+                Ok(())
+            })
+        }
+    }
+}
+
+impl Exporter for UsdExporter {
+    fn name(&self) -> &str {
+        "usd"
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["usda", "usdc", "usd"]
+    }
+
+    fn export(
+        &self,
+        scene: &ImportedScene,
+        baked: &BakedScene,
+        settings: &ExportSettings,
+    ) -> Result<Vec<OutputFile>, PluginError> {
+        let out = settings.path.as_path();
+        let ext = output_extension(out)?;
+        let dir = tempfile::tempdir()
+            .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
+        let temp = dir.path().join(format!("baked.{ext}"));
+        self.write(scene, baked, out, &temp)?;
+        let bytes = std::fs::read(&temp).map_err(|e| {
+            PluginError::new(
+                IoErrorKind::Io,
+                out,
+                format!("reading back usd-core's output {}: {e}", temp.display()),
+            )
+        })?;
+        // `dir` is deleted when it goes out of scope.
+        Ok(vec![OutputFile {
+            path: out.to_path_buf(),
+            bytes,
+        }])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prim_names_are_valid_and_unique() {
+        let mut taken = HashSet::new();
+        assert_eq!(prim_name("Suzanne.001", &mut taken), "Suzanne_001");
+        assert_eq!(prim_name("Suzanne.001", &mut taken), "Suzanne_001_1");
+        assert_eq!(prim_name("3d", &mut taken), "mesh_3d");
+        assert_eq!(prim_name("", &mut taken), "mesh_");
+    }
+
+    #[test]
+    fn output_extension_picks_the_format() {
+        assert_eq!(output_extension(Path::new("a.USDA")).unwrap(), "usda");
+        assert_eq!(output_extension(Path::new("a.usdc")).unwrap(), "usdc");
+        assert!(output_extension(Path::new("a.usdz")).is_err());
+    }
+}

@@ -1,0 +1,186 @@
+//! The USD importer: asks the bridge for the stage's meshes ([`read_stage`]) and turns them
+//! into an [`ImportedScene`] (up axis, metersPerUnit, one [`DisplayMesh`] per `UsdGeomMesh`).
+
+use crate::mesh::{build_display_mesh, Interpolation, RawMesh, RawPrimvar};
+use crate::python::{floats_of, ints_of, plugin_error, with_bridge};
+use pyo3::prelude::*;
+use springbake_core::display::{ImportedScene, SourceDocument, UpAxis};
+use springbake_core::plugin::{ImportSettings, Importer, IoErrorKind, PluginError};
+use std::path::{Path, PathBuf};
+
+/// What the bridge reports about a stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawStage {
+    pub up_axis: UpAxis,
+    pub meters_per_unit: f64,
+    pub meshes: Vec<RawMesh>,
+}
+
+fn primvar(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Option<RawPrimvar>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    let token: String = obj.get_item("interpolation")?.extract()?;
+    let interpolation = Interpolation::parse(&token).ok_or_else(|| {
+        pyo3::exceptions::PyValueError::new_err(format!("{what}: unknown interpolation {token:?}"))
+    })?;
+    Ok(Some(RawPrimvar {
+        interpolation,
+        values: floats_of(&obj.get_item("values")?)?,
+    }))
+}
+
+fn raw_mesh(m: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
+    let flat = floats_of(&m.get_item("points")?)?;
+    let world = crate::python::bytes_of(&m.get_item("world")?)?;
+    let mut world_gf = [0.0; 16];
+    for (slot, c) in world_gf.iter_mut().zip(world.chunks_exact(8)) {
+        *slot = f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+    }
+    let orientation: String = m.get_item("orientation")?.extract()?;
+    Ok(RawMesh {
+        path: m.get_item("path")?.extract()?,
+        name: m.get_item("name")?.extract()?,
+        points: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        counts: ints_of(&m.get_item("counts")?)?,
+        indices: ints_of(&m.get_item("indices")?)?,
+        normals: primvar(&m.get_item("normals")?, "normals")?,
+        normals_source: m.get_item("normals_source")?.extract()?,
+        st: primvar(&m.get_item("st")?, "primvars:st")?,
+        left_handed: orientation == "leftHanded",
+        material: m.get_item("material")?.extract()?,
+        world_gf,
+    })
+}
+
+/// Open `path` with usd-core and read every mesh's raw arrays.
+pub fn read_stage(path: &Path) -> Result<RawStage, PluginError> {
+    with_bridge(path, |py, bridge| {
+        let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, path);
+        let result = bridge
+            .call_method1("read_stage", (path.to_string_lossy().into_owned(),))
+            .map_err(to_err)?;
+        let up: String = result
+            .get_item("up_axis")
+            .and_then(|v| v.extract())
+            .map_err(to_err)?;
+        let up_axis = match up.as_str() {
+            "Z" => UpAxis::Z,
+            "Y" => UpAxis::Y,
+            other => {
+                return Err(PluginError::invalid(
+                    path,
+                    format!("upAxis {other:?} is neither \"Y\" nor \"Z\""),
+                )
+                .at("upAxis"))
+            }
+        };
+        let meters_per_unit: f64 = result
+            .get_item("meters_per_unit")
+            .and_then(|v| v.extract())
+            .map_err(to_err)?;
+        if !(meters_per_unit.is_finite() && meters_per_unit > 0.0) {
+            return Err(PluginError::invalid(
+                path,
+                format!("metersPerUnit {meters_per_unit} is not a positive number"),
+            )
+            .at("metersPerUnit"));
+        }
+        let mut meshes = Vec::new();
+        for m in result.get_item("meshes").and_then(|v| v.try_iter()).map_err(to_err)? {
+            let m = m.map_err(to_err)?;
+            let location: Option<String> = m.get_item("path").and_then(|p| p.extract()).ok();
+            meshes.push(raw_mesh(&m).map_err(|e| {
+                let err = to_err(e);
+                match &location {
+                    Some(l) if err.location.is_none() => err.at(l.clone()),
+                    _ => err,
+                }
+            })?);
+        }
+        Ok(RawStage {
+            up_axis,
+            meters_per_unit,
+            meshes,
+        })
+    })
+}
+
+/// Reads `.usda`, `.usdc`, `.usdz` and `.usd` with usd-core.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct UsdImporter;
+
+impl UsdImporter {
+    /// usd-core opens files by path; when `path` is not a readable file (bytes handed over
+    /// from memory), the bytes go to a temporary file with the same extension first.
+    fn import_from(&self, path: &Path, bytes: &[u8]) -> Result<ImportedScene, PluginError> {
+        if path.is_file() {
+            return self.import_path(path, path);
+        }
+        if bytes.is_empty() {
+            return Err(PluginError::new(
+                IoErrorKind::Io,
+                path,
+                "file cannot be read and no bytes were given",
+            ));
+        }
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("usd")
+            .to_ascii_lowercase();
+        let dir = tempfile::tempdir()
+            .map_err(|e| PluginError::new(IoErrorKind::Io, path, format!("temp folder: {e}")))?;
+        let temp = dir.path().join(format!("input.{ext}"));
+        std::fs::write(&temp, bytes)
+            .map_err(|e| PluginError::new(IoErrorKind::Io, path, format!("temp file: {e}")))?;
+        self.import_path(&temp, path)
+    }
+
+    fn import_path(&self, open: &Path, report: &Path) -> Result<ImportedScene, PluginError> {
+        let retarget = |mut e: PluginError| {
+            e.path = report.to_path_buf();
+            e
+        };
+        let stage = read_stage(open).map_err(retarget)?;
+        if stage.meshes.is_empty() {
+            return Err(PluginError::invalid(
+                report,
+                "the stage has no UsdGeomMesh prims to simulate",
+            ));
+        }
+        let meshes = stage
+            .meshes
+            .iter()
+            .map(|m| build_display_mesh(m, report))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(ImportedScene {
+            meshes,
+            up_axis: stage.up_axis,
+            meters_per_unit: stage.meters_per_unit,
+            source: SourceDocument {
+                path: PathBuf::from(report),
+                importer: "usd".into(),
+            },
+        })
+    }
+}
+
+impl Importer for UsdImporter {
+    fn name(&self) -> &str {
+        "usd"
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["usda", "usdc", "usdz", "usd"]
+    }
+
+    fn import(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        _settings: &ImportSettings,
+    ) -> Result<ImportedScene, PluginError> {
+        self.import_from(path, bytes)
+    }
+}

@@ -1,0 +1,279 @@
+"""springbake's bridge to usd-core (the `pxr` package), embedded in Rust with pyo3.
+
+The Rust side (`springbake-usd`) calls exactly three functions here:
+
+* `read_stage(path)` -> dict: stage metadata and, per UsdGeomMesh, its raw arrays as
+  little-endian byte strings (points, faceVertexCounts/Indices, normals, st, world matrix).
+  Triangulation, primvar expansion and vertex splitting happen in Rust.
+* `write_source_stage(source_path, out_path, spec)`: flatten the source stage, author the baked
+  `points` (and `normals`, `extent`) time samples on the named mesh prims, export.
+* `write_new_stage(out_path, spec)`: build a new stage (Xform + Mesh per baked mesh).
+
+Every failure is raised as `BridgeError(message, location)`, `location` being a prim or
+attribute path when one applies. Bulk data crosses the boundary as bytes (buffer protocol on
+both sides), never one Python call per vertex.
+"""
+
+import array
+import re
+
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+
+
+class BridgeError(Exception):
+    def __init__(self, message, location=None):
+        super().__init__(message)
+        self.message = message
+        self.location = location
+
+
+_TF_ERROR = re.compile(r"Error in '[^']*' at line \d+ in file [^:]*: '(.*?)'(?:\n|$)", re.S)
+
+
+def _clean_tf_message(text):
+    """usd-core errors embed C++ function names and source lines; keep the messages only."""
+    found = [m.strip() for m in _TF_ERROR.findall(str(text))]
+    if found:
+        return "; ".join(found)
+    return str(text).strip()
+
+
+def _open(path):
+    try:
+        stage = Usd.Stage.Open(path)
+    except Exception as e:  # pxr.Tf.ErrorException
+        raise BridgeError("usd-core cannot open the stage: " + _clean_tf_message(e))
+    if stage is None:
+        raise BridgeError("usd-core cannot open the stage")
+    return stage
+
+
+def _flat(values, kind):
+    """A Vt array as (format, bytes). kind 'f' for float vectors/scalars, 'i' for ints."""
+    if values is None:
+        return None
+    view = memoryview(values)
+    if kind == "i":
+        if view.format in ("i", "l") and view.itemsize == 4:
+            return ("i", view.tobytes())
+        return ("i", array.array("i", [int(x) for x in values]).tobytes())
+    if view.format in ("f", "d"):
+        return (view.format, view.tobytes())
+    # half precision or anything else: widen element by element (rare).
+    out = array.array("d")
+    for v in values:
+        try:
+            out.extend(float(x) for x in v)
+        except TypeError:
+            out.append(float(v))
+    return ("d", out.tobytes())
+
+
+def _value(attr, time):
+    value = attr.Get(time)
+    if value is None and attr.HasAuthoredValue():
+        value = attr.Get(Usd.TimeCode.EarliestTime())
+    return value
+
+
+def _primvar_data(primvar, time, location):
+    try:
+        values = primvar.ComputeFlattened(time)
+        if values is None:
+            values = primvar.ComputeFlattened(Usd.TimeCode.EarliestTime())
+    except Exception as e:
+        raise BridgeError("cannot resolve primvar: " + _clean_tf_message(e), location)
+    if values is None:
+        return None
+    return {"interpolation": str(primvar.GetInterpolation()), "values": _flat(values, "f")}
+
+
+def read_stage(path):
+    stage = _open(path)
+    time = Usd.TimeCode.Default()
+    meshes = []
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        location = str(prim.GetPath())
+        mesh = UsdGeom.Mesh(prim)
+        points = _value(mesh.GetPointsAttr(), time)
+        counts = _value(mesh.GetFaceVertexCountsAttr(), time)
+        indices = _value(mesh.GetFaceVertexIndicesAttr(), time)
+        if points is None or counts is None or indices is None:
+            raise BridgeError(
+                "mesh lacks points, faceVertexCounts or faceVertexIndices", location
+            )
+        primvars = UsdGeom.PrimvarsAPI(prim)
+        normals = None
+        normals_source = None
+        pv_normals = primvars.GetPrimvar("normals")
+        if pv_normals and pv_normals.HasAuthoredValue():
+            normals = _primvar_data(pv_normals, time, location + ".primvars:normals")
+            normals_source = "primvars:normals"
+        else:
+            attr = mesh.GetNormalsAttr()
+            if attr.HasAuthoredValue():
+                value = _value(attr, time)
+                if value is not None:
+                    normals = {
+                        "interpolation": str(mesh.GetNormalsInterpolation()),
+                        "values": _flat(value, "f"),
+                    }
+                    normals_source = "normals"
+        st = None
+        for name in ("st", "UVMap", "uv", "st0"):
+            pv = primvars.GetPrimvar(name)
+            if pv and pv.HasAuthoredValue():
+                st = _primvar_data(pv, time, location + ".primvars:" + name)
+                break
+        material = None
+        try:
+            bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+            if bound:
+                material = bound.GetPrim().GetName()
+        except Exception:
+            material = None
+        world = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time)
+        meshes.append(
+            {
+                "path": location,
+                "name": prim.GetName(),
+                "points": _flat(points, "f"),
+                "counts": _flat(counts, "i"),
+                "indices": _flat(indices, "i"),
+                "normals": normals,
+                "normals_source": normals_source,
+                "st": st,
+                "orientation": str(mesh.GetOrientationAttr().Get() or "rightHanded"),
+                "material": material,
+                # Gf matrices are row-major with row vectors (p' = p * M).
+                "world": array.array("d", [world[i][j] for i in range(4) for j in range(4)]).tobytes(),
+            }
+        )
+    return {
+        "up_axis": str(UsdGeom.GetStageUpAxis(stage)),
+        "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
+        "meshes": meshes,
+    }
+
+
+def _vec3f_array(data, count):
+    view = memoryview(data).cast("B").cast("f", shape=[count, 3])
+    return Vt.Vec3fArray.FromBuffer(view)
+
+
+def _vec2f_array(data, count):
+    view = memoryview(data).cast("B").cast("f", shape=[count, 2])
+    return Vt.Vec2fArray.FromBuffer(view)
+
+
+def _int_array(data):
+    return Vt.IntArray.FromBuffer(memoryview(data).cast("B").cast("i"))
+
+
+def _author_frames(mesh, item, frame_count, location):
+    """points / normals / extent time samples, frame i at time code i."""
+    n = item["point_count"]
+    stride = n * 3 * 4
+    points = item["points"]
+    extents = item["extents"]
+    normals = item.get("normals")
+    normal_count = item.get("normal_count", 0)
+    if len(points) != stride * frame_count:
+        raise BridgeError("points data has the wrong size", location + ".points")
+    points_attr = mesh.CreatePointsAttr()
+    extent_attr = mesh.CreateExtentAttr()
+    normals_attr = None
+    if normals is not None:
+        normals_attr = mesh.CreateNormalsAttr()
+        mesh.SetNormalsInterpolation(item["normals_interpolation"])
+    nstride = normal_count * 3 * 4
+    for f in range(frame_count):
+        t = Usd.TimeCode(float(f))
+        points_attr.Set(_vec3f_array(points[f * stride:(f + 1) * stride], n), t)
+        lo = extents[f * 6:f * 6 + 3]
+        hi = extents[f * 6 + 3:f * 6 + 6]
+        extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo), Gf.Vec3f(*hi)]), t)
+        if normals_attr is not None:
+            normals_attr.Set(
+                _vec3f_array(normals[f * nstride:(f + 1) * nstride], normal_count), t
+            )
+
+
+def _set_stage_timing(stage, spec):
+    fps = float(spec["fps"])
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    stage.SetStartTimeCode(0.0)
+    stage.SetEndTimeCode(float(max(spec["frame_count"] - 1, 0)))
+
+
+def _export(stage, out_path):
+    try:
+        ok = stage.GetRootLayer().Export(out_path)
+    except Exception as e:
+        raise BridgeError("usd-core cannot write the layer: " + _clean_tf_message(e))
+    if not ok:
+        raise BridgeError("usd-core cannot write the layer")
+
+
+def write_source_stage(source_path, out_path, spec):
+    source = _open(source_path)
+    try:
+        flat_layer = source.Flatten()
+    except Exception as e:
+        raise BridgeError("usd-core cannot flatten the source stage: " + _clean_tf_message(e))
+    stage = Usd.Stage.Open(flat_layer)
+    frame_count = int(spec["frame_count"])
+    for item in spec["meshes"]:
+        location = item["prim_path"]
+        prim = stage.GetPrimAtPath(location)
+        if not prim or not prim.IsA(UsdGeom.Mesh):
+            raise BridgeError("the source stage has no mesh at this path", location)
+        mesh = UsdGeom.Mesh(prim)
+        if item.get("drop_primvar_normals"):
+            # An indexed or primvar-authored normal set cannot follow the new points; the
+            # `normals` attribute written below replaces it.
+            prim.RemoveProperty("primvars:normals")
+            prim.RemoveProperty("primvars:normals:indices")
+        if item.get("normals") is None and item.get("drop_normals"):
+            prim.RemoveProperty("normals")
+        _author_frames(mesh, item, frame_count, location)
+    _set_stage_timing(stage, spec)
+    _export(stage, out_path)
+
+
+def _matrix_from_bytes(data):
+    values = array.array("d")
+    values.frombytes(data)
+    return Gf.Matrix4d(*values)
+
+
+def write_new_stage(out_path, spec):
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if spec["up_axis"] == "Z" else UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, float(spec["meters_per_unit"]))
+    root = UsdGeom.Xform.Define(stage, "/root")
+    stage.SetDefaultPrim(root.GetPrim())
+    frame_count = int(spec["frame_count"])
+    for item in spec["meshes"]:
+        xform_path = "/root/" + item["name"]
+        xform = UsdGeom.Xform.Define(stage, xform_path)
+        xform.AddTransformOp().Set(_matrix_from_bytes(item["world"]))
+        location = xform_path + "/mesh"
+        mesh = UsdGeom.Mesh.Define(stage, location)
+        mesh.CreateSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
+        mesh.CreateFaceVertexCountsAttr().Set(_int_array(item["counts"]))
+        mesh.CreateFaceVertexIndicesAttr().Set(_int_array(item["indices"]))
+        n = item["point_count"]
+        # The default (untimed) value is the rest shape; the frames are time samples.
+        mesh.CreatePointsAttr().Set(_vec3f_array(item["rest_points"], n))
+        if item.get("uvs") is not None:
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex
+            )
+            st.Set(_vec2f_array(item["uvs"], n))
+        _author_frames(mesh, item, frame_count, location)
+    _set_stage_timing(stage, spec)
+    _export(stage, out_path)
