@@ -14,3 +14,5 @@ pub mod plugin;
 pub mod scene;
 
 pub use nalgebra;
+pub mod shapes;
+pub mod solver;

@@ -61,7 +61,12 @@ impl Material {
         };
         check("young", young_pa > 0.0, "> 0 Pa", young_pa)?;
         check("density", density_kg_m3 > 0.0, "> 0 kg/m³", density_kg_m3)?;
-        check("poisson", (0.0..0.5).contains(&poisson), "in [0, 0.5)", poisson)?;
+        check(
+            "poisson",
+            (0.0..0.5).contains(&poisson),
+            "in [0, 0.5)",
+            poisson,
+        )?;
         check("damping", damping_ratio >= 0.0, ">= 0", damping_ratio)?;
         Ok(Material {
             name: name.into(),
@@ -109,8 +114,14 @@ mod tests {
     fn presets_are_valid_and_named() {
         for p in PRESETS {
             let m = Material::preset(p.0).unwrap();
-            Material::new(&m.name, m.young_pa, m.poisson, m.density_kg_m3, m.damping_ratio)
-                .unwrap();
+            Material::new(
+                &m.name,
+                m.young_pa,
+                m.poisson,
+                m.density_kg_m3,
+                m.damping_ratio,
+            )
+            .unwrap();
         }
         assert_eq!(Material::preset("Soft-Rubber").unwrap().name, "soft_rubber");
         assert!(matches!(

@@ -1,0 +1,57 @@
+//! Per-frame diagnostics (serialisable) and the solver's error type.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StepStats {
+    pub dispersion_corrections: u64,
+    pub dispersion_iterations: u32,
+    pub dispersion_cap_hit: bool,
+}
+
+/// Diagnostics of one output frame.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct FrameDiagnostics {
+    /// 1-based frame number.
+    pub frame: usize,
+    /// Simulated time at the frame, seconds (frame 1 is t = 0).
+    pub time: f64,
+    pub kinetic_energy: f64,
+    pub elastic_energy: f64,
+    /// m g h relative to height 0 along up, joules.
+    pub gravity_energy: f64,
+    pub substeps: u32,
+    pub dispersion_corrections: u64,
+    pub dispersion_iterations: u32,
+    /// Steps in this frame whose dispersion sweeps hit the iteration cap.
+    pub dispersion_cap_hits: u32,
+    pub inverted_cells: usize,
+    /// Deepest penetration into any contact layer, metres.
+    pub max_penetration: f64,
+    /// Fastest node, m/s.
+    pub max_speed: f64,
+    /// Force on the manipulators (minus the sum of their contact forces on the body), N.
+    pub manipulator_reaction: [f64; 3],
+}
+
+impl FrameDiagnostics {
+    pub fn reaction(&self) -> Vector3<f64> {
+        Vector3::from(self.manipulator_reaction)
+    }
+}
+
+/// A simulation that cannot go on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimulationError {
+    #[error("simulation diverged at frame {frame}: node {node} of body \"{body}\" has a non-finite {what}")]
+    NonFinite {
+        frame: usize,
+        body: String,
+        node: usize,
+        what: &'static str,
+    },
+    #[error("cancelled")]
+    Cancelled,
+}

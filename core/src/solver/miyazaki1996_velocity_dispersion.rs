@@ -1,0 +1,332 @@
+//! The fusion model's velocity dispersion (Miyazaki et al. 1996 §3, physics §7).
+//!
+//! A spring of length l, natural length L, stiffness k and end mass m keeps its ends in order
+//! while `½ m |v2−v1|² + ½ k (l−L)² < ½ k L²` (eq 4), i.e. while the relative speed stays below
+//! `θ = sqrt((k/m) · l · (2L − l))` (eq 5, with the square root where it belongs; θ = 0 for
+//! l ≥ 2L). A spring over the bound gives the excess `|v2−v1| − θ` to both ends along
+//! `v2 − v1` in opposite senses (eq 6): momentum kept, relative speed exactly θ. For unequal end
+//! masses m is the harmonic mean `2 m1 m2 / (m1 + m2)` and the excess is shared in inverse
+//! proportion to the masses (½ and ½ for equal masses, as printed).
+//!
+//! The procedure (§3.4) runs after the velocity update and before the position update and
+//! repeats until no spring violates the bound, at most `max_iterations` sweeps (hitting the cap
+//! is reported). Sweeps go colour by colour over a spring colouring in which no two springs of a
+//! colour share a node, so each colour is processed in parallel and the result does not depend
+//! on the thread count.
+//!
+//! Beyond the regime where the printed model works (physics §7b) one explicit step can carry a
+//! spring past zero length even under the energy bound; [`DispersionMode::Bounded`] adds the
+//! per-step bound `θ' = min(θ, ½ l / ΔT)`: no spring may close by more than half its length in
+//! one step.
+
+use super::{NodeState, SpringSet, PAR_CHUNK};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+/// Which velocity-dispersion rule the solver applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DispersionMode {
+    /// Springs only (shows the inversion failure of Fig. 3).
+    Off,
+    /// Eq 5–6 exactly as published.
+    AsPrinted,
+    /// Eq 5–6 plus the per-step bound θ' = min(θ, ½ l/ΔT) (production default).
+    #[default]
+    Bounded,
+}
+
+/// Springs grouped so that no two springs of one colour share a node.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SpringColouring {
+    /// Spring indices, colour after colour.
+    pub order: Vec<u32>,
+    /// `order[offsets[c]..offsets[c+1]]` are the springs of colour c.
+    pub offsets: Vec<u32>,
+}
+
+impl SpringColouring {
+    /// Greedy edge colouring in spring order (deterministic).
+    pub fn new(nodes: usize, springs: &SpringSet) -> SpringColouring {
+        // used[node] = bitmask of colours touching it, spilling into a Vec for high degrees.
+        let mut used: Vec<Vec<u64>> = vec![vec![0]; nodes];
+        let mut colour_of = vec![0u32; springs.len()];
+        let mut colours = 0u32;
+        for s in 0..springs.len() {
+            let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
+            let mut c = 0u32;
+            loop {
+                let word = (c / 64) as usize;
+                let bit = 1u64 << (c % 64);
+                let ua = used[a].get(word).copied().unwrap_or(0);
+                let ub = used[b].get(word).copied().unwrap_or(0);
+                if (ua | ub) & bit == 0 {
+                    break;
+                }
+                c += 1;
+            }
+            let word = (c / 64) as usize;
+            for n in [a, b] {
+                if used[n].len() <= word {
+                    used[n].resize(word + 1, 0);
+                }
+                used[n][word] |= 1u64 << (c % 64);
+            }
+            colour_of[s] = c;
+            colours = colours.max(c + 1);
+        }
+        let mut offsets = vec![0u32; colours as usize + 1];
+        for &c in &colour_of {
+            offsets[c as usize + 1] += 1;
+        }
+        for c in 0..colours as usize {
+            offsets[c + 1] += offsets[c];
+        }
+        let mut fill = offsets.clone();
+        let mut order = vec![0u32; springs.len()];
+        for (s, &c) in colour_of.iter().enumerate() {
+            order[fill[c as usize] as usize] = s as u32;
+            fill[c as usize] += 1;
+        }
+        SpringColouring { order, offsets }
+    }
+
+    pub fn colour_count(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+}
+
+/// What one dispersion pass did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DispersionStats {
+    /// Spring corrections applied.
+    pub corrections: u64,
+    /// Sweeps over all springs (0 when nothing violated the bound).
+    pub iterations: u32,
+    /// The sweep cap was reached with springs still over the bound.
+    pub hit_cap: bool,
+}
+
+/// The relative-speed bound of spring `s` (eq 5, and the per-step bound in `Bounded` mode).
+#[inline]
+pub fn speed_bound(
+    mode: DispersionMode,
+    k: f64,
+    mass_a: f64,
+    mass_b: f64,
+    length: f64,
+    rest_length: f64,
+    dt: f64,
+) -> f64 {
+    let m = 2.0 * mass_a * mass_b / (mass_a + mass_b);
+    let theta = if length >= 2.0 * rest_length {
+        0.0
+    } else {
+        ((k / m) * length * (2.0 * rest_length - length)).sqrt()
+    };
+    match mode {
+        DispersionMode::Bounded => theta.min(0.5 * length / dt),
+        _ => theta,
+    }
+}
+
+/// The velocity change for node `a` of spring `s` (node `b` gets `-(m_a/m_b)` times it), or
+/// `None` when the spring is within its bound.
+#[inline]
+fn correction(
+    mode: DispersionMode,
+    nodes: &NodeState,
+    springs: &SpringSet,
+    s: usize,
+    dt: f64,
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
+    let (ma, mb) = (nodes.mass[a], nodes.mass[b]);
+    if nodes.inv_mass[a] == 0.0 && nodes.inv_mass[b] == 0.0 {
+        return None;
+    }
+    let rel = nodes.velocity[b] - nodes.velocity[a];
+    let speed_sq = rel.norm_squared();
+    // Cheap early-out: most springs are far below the bound.
+    let length = (nodes.position[a] - nodes.position[b]).norm();
+    let bound = speed_bound(
+        mode,
+        springs.stiffness[s],
+        ma,
+        mb,
+        length,
+        springs.rest_length[s],
+        dt,
+    );
+    // A relative tolerance keeps a spring just corrected to θ from being corrected again.
+    if speed_sq <= bound * bound * (1.0 + 1e-9) {
+        return None;
+    }
+    let speed = speed_sq.sqrt();
+    let dir = rel / speed;
+    let excess = speed - bound;
+    // Share in inverse proportion to mass; a pinned end takes nothing.
+    let (wa, wb) = (nodes.inv_mass[a], nodes.inv_mass[b]);
+    let share = excess / (wa + wb);
+    Some((dir * (share * wa), -dir * (share * wb)))
+}
+
+/// Apply the dispersion procedure to `nodes.velocity` (positions are the current ones).
+pub fn disperse(
+    mode: DispersionMode,
+    nodes: &mut NodeState,
+    springs: &SpringSet,
+    colouring: &SpringColouring,
+    dt: f64,
+    max_iterations: u32,
+    scratch: &mut Vec<(u32, Vector3<f64>, Vector3<f64>)>,
+) -> DispersionStats {
+    let mut stats = DispersionStats::default();
+    if mode == DispersionMode::Off {
+        return stats;
+    }
+    loop {
+        let mut violated = 0u64;
+        for c in 0..colouring.colour_count() {
+            let group =
+                &colouring.order[colouring.offsets[c] as usize..colouring.offsets[c + 1] as usize];
+            let state: &NodeState = nodes;
+            scratch.clear();
+            scratch.par_extend(group.par_iter().with_min_len(PAR_CHUNK).filter_map(|&s| {
+                correction(mode, state, springs, s as usize, dt).map(|(da, db)| (s, da, db))
+            }));
+            // No two springs of one colour share a node: applying in any order is the same.
+            for &(s, da, db) in scratch.iter() {
+                nodes.velocity[springs.a[s as usize] as usize] += da;
+                nodes.velocity[springs.b[s as usize] as usize] += db;
+            }
+            violated += scratch.len() as u64;
+        }
+        if violated == 0 {
+            break;
+        }
+        stats.corrections += violated;
+        stats.iterations += 1;
+        if stats.iterations >= max_iterations {
+            // One more check tells whether springs are still over the bound.
+            let state: &NodeState = nodes;
+            stats.hit_cap = (0..springs.len())
+                .into_par_iter()
+                .with_min_len(PAR_CHUNK)
+                .any(|s| correction(mode, state, springs, s, dt).is_some());
+            break;
+        }
+    }
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(v1: f64, v2: f64, m1: f64, m2: f64) -> (NodeState, SpringSet) {
+        let nodes = NodeState {
+            position: vec![Vector3::zeros(), Vector3::new(0.1, 0.0, 0.0)],
+            velocity: vec![Vector3::new(v1, 0.0, 0.0), Vector3::new(v2, 0.0, 0.0)],
+            mass: vec![m1, m2],
+            inv_mass: vec![1.0 / m1, 1.0 / m2],
+        };
+        let mut springs = SpringSet::default();
+        springs.push(0, 1, 0.1, 2000.0, 0.0);
+        (nodes, springs)
+    }
+
+    #[test]
+    fn eq5_bound_in_si_units() {
+        // l = L: θ = sqrt(k/m)·L; k = 2000, m = 0.05 → sqrt(40000)·0.1 = 20 m/s.
+        let theta = speed_bound(
+            DispersionMode::AsPrinted,
+            2000.0,
+            0.05,
+            0.05,
+            0.1,
+            0.1,
+            1e-3,
+        );
+        assert!((theta - 20.0).abs() < 1e-12);
+        assert_eq!(
+            speed_bound(
+                DispersionMode::AsPrinted,
+                2000.0,
+                0.05,
+                0.05,
+                0.2,
+                0.1,
+                1e-3
+            ),
+            0.0
+        );
+        // Per-step bound: ½ l/ΔT = 0.5·0.1/0.01 = 5 m/s < 20.
+        let bounded = speed_bound(DispersionMode::Bounded, 2000.0, 0.05, 0.05, 0.1, 0.1, 0.01);
+        assert!((bounded - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn eq6_keeps_momentum_and_leaves_exactly_theta() {
+        for (m1, m2) in [(0.05, 0.05), (0.05, 0.2)] {
+            let (mut nodes, springs) = pair(30.0, -10.0, m1, m2);
+            let p0 = nodes.velocity[0] * m1 + nodes.velocity[1] * m2;
+            let col = SpringColouring::new(2, &springs);
+            let stats = disperse(
+                DispersionMode::AsPrinted,
+                &mut nodes,
+                &springs,
+                &col,
+                1e-3,
+                8,
+                &mut Vec::new(),
+            );
+            assert_eq!(stats.corrections, 1);
+            assert_eq!(stats.iterations, 1);
+            let p1 = nodes.velocity[0] * m1 + nodes.velocity[1] * m2;
+            assert!((p1 - p0).norm() < 1e-12);
+            let rel = (nodes.velocity[1] - nodes.velocity[0]).norm();
+            let theta = speed_bound(DispersionMode::AsPrinted, 2000.0, m1, m2, 0.1, 0.1, 1e-3);
+            assert!((rel - theta).abs() < 1e-9, "{rel} vs {theta}");
+        }
+    }
+
+    #[test]
+    fn within_bound_nothing_changes() {
+        let (mut nodes, springs) = pair(1.0, -1.0, 0.05, 0.05);
+        let before = nodes.clone();
+        let col = SpringColouring::new(2, &springs);
+        let stats = disperse(
+            DispersionMode::AsPrinted,
+            &mut nodes,
+            &springs,
+            &col,
+            1e-3,
+            8,
+            &mut Vec::new(),
+        );
+        assert_eq!(stats, DispersionStats::default());
+        assert_eq!(nodes, before);
+    }
+
+    #[test]
+    fn colouring_never_puts_two_springs_of_a_node_in_one_colour() {
+        let mut springs = SpringSet::default();
+        // A small complete graph: 6 nodes, 15 springs.
+        for a in 0..6u32 {
+            for b in a + 1..6 {
+                springs.push(a, b, 1.0, 1.0, 0.0);
+            }
+        }
+        let col = SpringColouring::new(6, &springs);
+        for c in 0..col.colour_count() {
+            let mut seen = [false; 6];
+            for &s in &col.order[col.offsets[c] as usize..col.offsets[c + 1] as usize] {
+                for n in [springs.a[s as usize], springs.b[s as usize]] {
+                    assert!(!seen[n as usize]);
+                    seen[n as usize] = true;
+                }
+            }
+        }
+        assert_eq!(col.order.len(), 15);
+    }
+}

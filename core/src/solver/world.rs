@@ -1,0 +1,576 @@
+//! The [`World`]: every body's nodes and springs, the rigid surfaces and manipulators, and the
+//! stepping loop (symplectic Euler, Miyazaki §3.4 order: forces → velocity update → velocity
+//! dispersion → position update).
+
+use super::contact::{node_contacts, ContactLayer, Plane};
+use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
+use super::forces::{gather_forces, spring_energy, spring_forces, Adjacency};
+use super::manipulator::{Capsule, ManipulatorTrack};
+use super::miyazaki1996_velocity_dispersion::{disperse, DispersionMode, SpringColouring};
+use super::substeps::{accuracy_step, SubstepChoice};
+use super::{deterministic_sum, parallel_max, NodeState, SpringSet, PAR_CHUNK};
+use crate::lattice::{cell_is_inverted, Lattice};
+use crate::material::Material;
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// World-wide settings, SI units, world frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldSettings {
+    /// Gravitational acceleration vector, m/s².
+    pub gravity: Vector3<f64>,
+    /// Unit up vector (for gravity energy and the manipulator's yaw).
+    pub up: Vector3<f64>,
+    /// Rigid surfaces: the floor and the room's walls.
+    pub planes: Vec<Plane>,
+    pub layer: ContactLayer,
+    pub dispersion: DispersionMode,
+    pub max_dispersion_iterations: u32,
+    /// N of the accuracy bound ΔT < T_s / N.
+    pub accuracy_n: f64,
+    /// A fixed number of substeps per frame instead of the automatic choice.
+    pub fixed_substeps: Option<u32>,
+    /// Automatic substeps also keep every node's travel per substep under this fraction of the
+    /// shortest spring (physics §7b, "substeps from node speeds").
+    pub max_travel_fraction: f64,
+}
+
+impl Default for WorldSettings {
+    fn default() -> Self {
+        WorldSettings {
+            gravity: Vector3::new(0.0, -9.81, 0.0),
+            up: Vector3::y(),
+            planes: Vec::new(),
+            layer: ContactLayer {
+                thickness_m: 0.01,
+                stiffness: 1.0e4,
+                damping_ratio: 0.3,
+                friction: 0.4,
+            },
+            dispersion: DispersionMode::Bounded,
+            max_dispersion_iterations: 32,
+            accuracy_n: 10.0,
+            fixed_substeps: None,
+            max_travel_fraction: 0.2,
+        }
+    }
+}
+
+impl WorldSettings {
+    /// The default elastic layer for a lattice of cell size `cell_m` in `material`: half a cell
+    /// thick, ten times an edge spring's stiffness (a resting body sinks a tiny fraction of
+    /// the layer), damping ratio 0.3.
+    pub fn default_layer(cell_m: f64, material: &Material, friction: f64) -> ContactLayer {
+        ContactLayer {
+            thickness_m: 0.5 * cell_m,
+            stiffness: 10.0 * material.spring_constant(cell_m),
+            damping_ratio: 0.3,
+            friction,
+        }
+    }
+}
+
+/// Index of a body in its world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct BodyHandle(pub usize);
+
+/// A body's share of the world's arrays.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyInfo {
+    pub name: String,
+    pub nodes: Range<usize>,
+    pub springs: Range<usize>,
+    /// Lattice cells (8 world node indices each), for the inverted-cell count.
+    pub cells: Vec<[u32; 8]>,
+}
+
+/// All simulated bodies and what they touch.
+#[derive(Debug, Clone)]
+pub struct World {
+    pub settings: WorldSettings,
+    pub nodes: NodeState,
+    pub springs: SpringSet,
+    pub bodies: Vec<BodyInfo>,
+    pub manipulators: Vec<ManipulatorTrack>,
+    /// Capsules driven directly (the viewer's live mode), in addition to the tracks.
+    pub live_capsules: Vec<Capsule>,
+    /// Simulated time, seconds.
+    pub time: f64,
+    prepared: Option<Prepared>,
+}
+
+/// Derived data rebuilt when bodies change, and scratch buffers reused every step.
+#[derive(Debug, Clone)]
+struct Prepared {
+    adjacency: Adjacency,
+    colouring: SpringColouring,
+    spring_force: Vec<Vector3<f64>>,
+    force: Vec<Vector3<f64>>,
+    depth: Vec<f64>,
+    capsule_force: Vec<Vector3<f64>>,
+    dispersion_scratch: Vec<(u32, Vector3<f64>, Vector3<f64>)>,
+    capsules: Vec<Capsule>,
+    static_step: SubstepChoice,
+    shortest_spring: f64,
+}
+
+/// Running totals over the substeps of one frame.
+#[derive(Debug, Clone, Copy, Default)]
+struct FrameAccumulator {
+    corrections: u64,
+    iterations: u32,
+    cap_hits: u32,
+    max_depth: f64,
+    reaction_sum: Vector3<f64>,
+    steps: u32,
+}
+
+impl World {
+    pub fn new(settings: WorldSettings) -> World {
+        World {
+            settings,
+            nodes: NodeState::default(),
+            springs: SpringSet::default(),
+            bodies: Vec::new(),
+            manipulators: Vec::new(),
+            live_capsules: Vec::new(),
+            time: 0.0,
+            prepared: None,
+        }
+    }
+
+    /// Add a fitted lattice as a body: masses from density (each cell's mass shared equally by
+    /// its 8 corners, so the total is density × lattice volume), springs `k = E·L` with
+    /// dampers `D = 2ζ sqrt(k μ)` (μ the reduced mass of the ends), all nodes moving at
+    /// `velocity`.
+    pub fn add_lattice_body(
+        &mut self,
+        name: impl Into<String>,
+        lattice: &Lattice,
+        material: &Material,
+        velocity: Vector3<f64>,
+    ) -> BodyHandle {
+        let base = self.nodes.len();
+        let cell_mass = material.cell_mass(lattice.cell_size);
+        let mut mass = vec![0.0; lattice.node_count()];
+        for corners in &lattice.cell_nodes {
+            for &n in corners {
+                mass[n as usize] += cell_mass / 8.0;
+            }
+        }
+        let k = material.spring_constant(lattice.cell_size);
+        let springs: Vec<(u32, u32, f64, f64)> = lattice
+            .springs
+            .iter()
+            .map(|s| {
+                let (ma, mb) = (mass[s.a as usize], mass[s.b as usize]);
+                let mu = ma * mb / (ma + mb);
+                (s.a, s.b, k, 2.0 * material.damping_ratio * (k * mu).sqrt())
+            })
+            .collect();
+        let positions: Vec<Vector3<f64>> =
+            lattice.rest_positions.iter().map(|p| p.coords).collect();
+        let handle = self.add_body(name, &positions, &mass, &springs, velocity);
+        self.bodies[handle.0].cells = lattice
+            .cell_nodes
+            .iter()
+            .map(|c| c.map(|n| n + base as u32))
+            .collect();
+        handle
+    }
+
+    /// Add any mass-spring model: node positions (metres) and masses (kg), springs as
+    /// `(a, b, k, D)` with rest lengths taken from the given positions.
+    pub fn add_body(
+        &mut self,
+        name: impl Into<String>,
+        positions: &[Vector3<f64>],
+        masses: &[f64],
+        springs: &[(u32, u32, f64, f64)],
+        velocity: Vector3<f64>,
+    ) -> BodyHandle {
+        let base = self.nodes.len() as u32;
+        let first_spring = self.springs.len();
+        for (p, &m) in positions.iter().zip(masses) {
+            self.nodes.position.push(*p);
+            self.nodes.velocity.push(velocity);
+            self.nodes.mass.push(m);
+            self.nodes
+                .inv_mass
+                .push(if m > 0.0 { 1.0 / m } else { 0.0 });
+        }
+        for &(a, b, k, d) in springs {
+            let rest = (positions[a as usize] - positions[b as usize]).norm();
+            self.springs.push(a + base, b + base, rest, k, d);
+        }
+        self.bodies.push(BodyInfo {
+            name: name.into(),
+            nodes: base as usize..self.nodes.len(),
+            springs: first_spring..self.springs.len(),
+            cells: Vec::new(),
+        });
+        self.prepared = None;
+        BodyHandle(self.bodies.len() - 1)
+    }
+
+    /// Node positions of one body.
+    pub fn body_positions(&self, body: BodyHandle) -> &[Vector3<f64>] {
+        &self.nodes.position[self.bodies[body.0].nodes.clone()]
+    }
+
+    /// Node positions of one body as points.
+    pub fn body_points(&self, body: BodyHandle) -> Vec<Point3<f64>> {
+        self.body_positions(body)
+            .iter()
+            .map(|&p| Point3::from(p))
+            .collect()
+    }
+
+    fn prepare(&mut self) -> &mut Prepared {
+        if self.prepared.is_none() {
+            let n = self.nodes.len();
+            let adjacency = Adjacency::new(n, &self.springs);
+            let colouring = SpringColouring::new(n, &self.springs);
+            let static_step = self.static_step();
+            let shortest_spring = self
+                .springs
+                .rest_length
+                .iter()
+                .cloned()
+                .fold(f64::INFINITY, f64::min);
+            self.prepared = Some(Prepared {
+                adjacency,
+                colouring,
+                spring_force: vec![Vector3::zeros(); self.springs.len()],
+                force: vec![Vector3::zeros(); n],
+                depth: vec![0.0; n],
+                capsule_force: vec![Vector3::zeros(); n],
+                dispersion_scratch: Vec::new(),
+                capsules: Vec::new(),
+                static_step,
+                shortest_spring,
+            });
+        }
+        self.prepared.as_mut().expect("prepared above")
+    }
+
+    /// Largest step allowed by the accuracy bound (stiffest spring, lighter end; the contact
+    /// layer on the lightest node) and by symplectic-Euler stability.
+    fn static_step(&self) -> SubstepChoice {
+        let n_acc = self.settings.accuracy_n;
+        let s = &self.springs;
+        let nodes = &self.nodes;
+        let mut k_over_m: f64 = 0.0;
+        let mut max_zeta: f64 = 0.0;
+        let mut node_k = vec![0.0; nodes.len()];
+        for i in 0..s.len() {
+            let (a, b) = (s.a[i] as usize, s.b[i] as usize);
+            let m = nodes.mass[a].min(nodes.mass[b]);
+            if m > 0.0 {
+                k_over_m = k_over_m.max(s.stiffness[i] / m);
+            }
+            let mu = nodes.mass[a] * nodes.mass[b] / (nodes.mass[a] + nodes.mass[b]);
+            if mu > 0.0 && s.stiffness[i] > 0.0 {
+                max_zeta = max_zeta.max(s.damping[i] / (2.0 * (s.stiffness[i] * mu).sqrt()));
+            }
+            node_k[a] += s.stiffness[i];
+            node_k[b] += s.stiffness[i];
+        }
+        let has_contact = !self.settings.planes.is_empty()
+            || !self.manipulators.is_empty()
+            || !self.live_capsules.is_empty();
+        let layer_k = if has_contact {
+            self.settings.layer.stiffness
+        } else {
+            0.0
+        };
+        let min_mass = nodes
+            .mass
+            .iter()
+            .cloned()
+            .filter(|&m| m > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let mut omega_sq: f64 = 0.0;
+        for i in 0..nodes.len() {
+            if nodes.mass[i] > 0.0 {
+                omega_sq = omega_sq.max((2.0 * node_k[i] + layer_k) / nodes.mass[i]);
+            }
+        }
+        let mut best = SubstepChoice {
+            substeps: 1,
+            dt: f64::INFINITY,
+            limited_by: "accuracy",
+        };
+        let mut consider = |dt: f64, why: &'static str| {
+            if dt < best.dt {
+                best.dt = dt;
+                best.limited_by = why;
+            }
+        };
+        if k_over_m > 0.0 {
+            consider(accuracy_step(k_over_m, n_acc), "accuracy");
+        }
+        if layer_k > 0.0 && min_mass.is_finite() {
+            consider(accuracy_step(layer_k / min_mass, n_acc), "contact");
+        }
+        if omega_sq > 0.0 {
+            let zeta = max_zeta.max(self.settings.layer.damping_ratio);
+            consider(
+                0.8 * 2.0 * ((1.0 + zeta * zeta).sqrt() - zeta) / omega_sq.sqrt(),
+                "stability",
+            );
+        }
+        best
+    }
+
+    /// Substeps for an output frame of `frame_dt` seconds.
+    pub fn choose_substeps(&mut self, frame_dt: f64) -> SubstepChoice {
+        if let Some(n) = self.settings.fixed_substeps {
+            return SubstepChoice {
+                substeps: n.max(1),
+                dt: frame_dt / n.max(1) as f64,
+                limited_by: "fixed",
+            };
+        }
+        let travel = self.settings.max_travel_fraction;
+        let v_max = self.max_speed();
+        let p = self.prepare();
+        let mut choice = p.static_step;
+        let mut n = if choice.dt.is_finite() {
+            (frame_dt / choice.dt).ceil().max(1.0)
+        } else {
+            1.0
+        };
+        if p.shortest_spring.is_finite() && v_max > 0.0 {
+            let by_speed = (v_max * frame_dt / (travel * p.shortest_spring)).ceil();
+            if by_speed > n {
+                n = by_speed;
+                choice.limited_by = "speed";
+            }
+        }
+        choice.substeps = n.min(u32::MAX as f64) as u32;
+        choice.dt = frame_dt / n;
+        choice
+    }
+
+    fn max_speed(&self) -> f64 {
+        let v = &self.nodes.velocity;
+        parallel_max(v.len(), |i| v[i].norm())
+    }
+
+    /// Capsules of the scripted tracks at time `t` plus the live ones.
+    fn capsules_at(&self, t: f64) -> Vec<Capsule> {
+        self.manipulators
+            .iter()
+            .map(|m| m.capsule_at(t))
+            .chain(self.live_capsules.iter().copied())
+            .collect()
+    }
+
+    /// One step of `dt` seconds.
+    pub fn step(&mut self, dt: f64) -> StepStats {
+        let mut acc = FrameAccumulator::default();
+        self.step_accumulate(dt, &mut acc)
+    }
+
+    fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        let capsules = self.capsules_at(self.time);
+        let gravity = self.settings.gravity;
+        let layer = self.settings.layer;
+        let dispersion = self.settings.dispersion;
+        let max_iter = self.settings.max_dispersion_iterations;
+        let has_contact = !self.settings.planes.is_empty() || !capsules.is_empty();
+        self.prepare();
+        let World {
+            nodes,
+            springs,
+            settings,
+            prepared,
+            ..
+        } = self;
+        let p = prepared.as_mut().expect("prepared");
+        p.capsules = capsules;
+
+        spring_forces(nodes, springs, &mut p.spring_force);
+        gather_forces(nodes, &p.adjacency, &p.spring_force, gravity, &mut p.force);
+
+        if has_contact {
+            let planes = &settings.planes;
+            let caps = &p.capsules;
+            let state: &NodeState = nodes;
+            p.force
+                .par_iter_mut()
+                .zip(p.depth.par_iter_mut())
+                .zip(p.capsule_force.par_iter_mut())
+                .with_min_len(PAR_CHUNK)
+                .enumerate()
+                .for_each(|(i, ((f, depth), cap_f))| {
+                    let (cf, d, from_caps) = node_contacts(
+                        &layer,
+                        planes,
+                        caps,
+                        state.position[i],
+                        state.velocity[i],
+                        state.mass[i],
+                        dt,
+                    );
+                    *f += cf;
+                    *depth = d;
+                    *cap_f = from_caps;
+                });
+            let depth = &p.depth;
+            acc.max_depth = acc.max_depth.max(parallel_max(depth.len(), |i| depth[i]));
+            if !p.capsules.is_empty() {
+                let cf = &p.capsule_force;
+                let n = cf.len();
+                acc.reaction_sum -= Vector3::new(
+                    deterministic_sum(n, |i| cf[i].x),
+                    deterministic_sum(n, |i| cf[i].y),
+                    deterministic_sum(n, |i| cf[i].z),
+                );
+            }
+        }
+
+        // Velocity update (symplectic Euler, eq 2).
+        let force = &p.force;
+        let inv_mass = &nodes.inv_mass;
+        nodes
+            .velocity
+            .par_iter_mut()
+            .with_min_len(PAR_CHUNK)
+            .enumerate()
+            .for_each(|(i, v)| *v += force[i] * (inv_mass[i] * dt));
+
+        // Velocity dispersion (§3.4 step 2–3).
+        let d = disperse(
+            dispersion,
+            nodes,
+            springs,
+            &p.colouring,
+            dt,
+            max_iter,
+            &mut p.dispersion_scratch,
+        );
+
+        // Position update with the new velocity (eq 3, symplectic).
+        let velocity = &nodes.velocity;
+        nodes
+            .position
+            .par_iter_mut()
+            .with_min_len(PAR_CHUNK)
+            .enumerate()
+            .for_each(|(i, x)| *x += velocity[i] * dt);
+
+        self.time += dt;
+        acc.corrections += d.corrections;
+        acc.iterations += d.iterations;
+        acc.cap_hits += d.hit_cap as u32;
+        acc.steps += 1;
+        StepStats {
+            dispersion_corrections: d.corrections,
+            dispersion_iterations: d.iterations,
+            dispersion_cap_hit: d.hit_cap,
+        }
+    }
+
+    /// Advance one output frame of `frame_dt` seconds; `frame` is the 1-based number of the
+    /// frame reached. Stops with an error naming the frame and node at the first non-finite
+    /// value, and with [`SimulationError::Cancelled`] when `cancelled()` turns true.
+    pub fn advance_frame(
+        &mut self,
+        frame_dt: f64,
+        frame: usize,
+        cancelled: &dyn Fn() -> bool,
+    ) -> Result<FrameDiagnostics, SimulationError> {
+        let choice = self.choose_substeps(frame_dt);
+        let mut acc = FrameAccumulator::default();
+        for _ in 0..choice.substeps {
+            self.step_accumulate(choice.dt, &mut acc);
+        }
+        if cancelled() {
+            return Err(SimulationError::Cancelled);
+        }
+        self.check_finite(frame)?;
+        let mut diag = self.diagnostics(frame);
+        diag.substeps = choice.substeps;
+        diag.dispersion_corrections = acc.corrections;
+        diag.dispersion_iterations = acc.iterations;
+        diag.dispersion_cap_hits = acc.cap_hits;
+        diag.max_penetration = acc.max_depth;
+        if acc.steps > 0 {
+            diag.manipulator_reaction = (acc.reaction_sum / acc.steps as f64).into();
+        }
+        Ok(diag)
+    }
+
+    /// State diagnostics at the current time (energies, inverted cells, speed).
+    pub fn diagnostics(&self, frame: usize) -> FrameDiagnostics {
+        let n = &self.nodes;
+        let s = &self.springs;
+        let g = self.settings.gravity;
+        FrameDiagnostics {
+            frame,
+            time: self.time,
+            kinetic_energy: deterministic_sum(n.len(), |i| {
+                0.5 * n.mass[i] * n.velocity[i].norm_squared()
+            }),
+            elastic_energy: deterministic_sum(s.len(), |i| spring_energy(n, s, i)),
+            gravity_energy: deterministic_sum(n.len(), |i| -n.mass[i] * g.dot(&n.position[i])),
+            inverted_cells: self.inverted_cells(),
+            max_speed: self.max_speed(),
+            ..FrameDiagnostics::default()
+        }
+    }
+
+    /// Cells of all bodies with a non-positive corner tetrahedron.
+    pub fn inverted_cells(&self) -> usize {
+        let points: Vec<Point3<f64>> = self
+            .nodes
+            .position
+            .iter()
+            .map(|&p| Point3::from(p))
+            .collect();
+        self.bodies
+            .iter()
+            .map(|b| {
+                b.cells
+                    .par_iter()
+                    .with_min_len(PAR_CHUNK)
+                    .filter(|c| cell_is_inverted(c, &points))
+                    .count()
+            })
+            .sum()
+    }
+
+    fn check_finite(&self, frame: usize) -> Result<(), SimulationError> {
+        let bad = |v: &Vector3<f64>| !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite());
+        for (what, values) in [
+            ("position", &self.nodes.position),
+            ("velocity", &self.nodes.velocity),
+        ] {
+            if let Some(i) = values.iter().position(bad) {
+                let body = self.bodies.iter().find(|b| b.nodes.contains(&i));
+                return Err(SimulationError::NonFinite {
+                    frame,
+                    body: body.map(|b| b.name.clone()).unwrap_or_default(),
+                    node: i - body.map(|b| b.nodes.start).unwrap_or(0),
+                    what,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Total energy (kinetic + elastic + gravity) now.
+    pub fn total_energy(&self) -> f64 {
+        let d = self.diagnostics(0);
+        d.kinetic_energy + d.elastic_energy + d.gravity_energy
+    }
+
+    /// Total linear momentum.
+    pub fn momentum(&self) -> Vector3<f64> {
+        let n = &self.nodes;
+        (0..n.len()).map(|i| n.velocity[i] * n.mass[i]).sum()
+    }
+}
