@@ -84,7 +84,10 @@ impl Exporter for MddExporter {
         if !(baked.fps.is_finite() && baked.fps > 0.0) {
             return Err(PluginError::invalid(
                 &settings.path,
-                format!("MDD needs a positive frame rate, the bake has {} fps", baked.fps),
+                format!(
+                    "MDD needs a positive frame rate, the bake has {} fps",
+                    baked.fps
+                ),
             ));
         }
         export_each(scene, baked, settings, mdd_bytes)
@@ -131,7 +134,10 @@ fn export_each(
 ) -> Result<Vec<OutputFile>, PluginError> {
     let out_path = &settings.path;
     if baked.meshes.is_empty() {
-        return Err(PluginError::invalid(out_path, "the bake has no meshes to write"));
+        return Err(PluginError::invalid(
+            out_path,
+            "the bake has no meshes to write",
+        ));
     }
     let mut entries = Vec::with_capacity(baked.meshes.len());
     for (k, bm) in baked.meshes.iter().enumerate() {
@@ -171,14 +177,19 @@ fn source_point_frames(
     if bm.frames.is_empty() {
         return Err(PluginError::invalid(
             out_path,
-            format!("mesh '{}' has no baked frames; a point cache needs at least one", mesh.name),
+            format!(
+                "mesh '{}' has no baked frames; a point cache needs at least one",
+                mesh.name
+            ),
         )
         .at(format!("baked.meshes[{k}]")));
     }
-    if i32::try_from(bm.frames.len()).is_err() || i32::try_from(mesh.source_point_count).is_err()
-    {
-        return Err(PluginError::invalid(out_path, "too many frames or points for a 32-bit header")
-            .at(format!("baked.meshes[{k}]")));
+    if i32::try_from(bm.frames.len()).is_err() || i32::try_from(mesh.source_point_count).is_err() {
+        return Err(PluginError::invalid(
+            out_path,
+            "too many frames or points for a 32-bit header",
+        )
+        .at(format!("baked.meshes[{k}]")));
     }
     let vertices = mesh.vertex_count();
     bm.frames
@@ -199,7 +210,10 @@ fn source_point_frames(
             if let Some(v) = frame.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
                 return Err(PluginError::invalid(
                     out_path,
-                    format!("vertex {v} of mesh '{}' is not finite: {:?}", mesh.name, frame[v]),
+                    format!(
+                        "vertex {v} of mesh '{}' is not finite: {:?}",
+                        mesh.name, frame[v]
+                    ),
                 )
                 .at(where_(f)));
             }

@@ -10,7 +10,11 @@ use std::path::{Path, PathBuf};
 
 fn obj(text: &str) -> ImportedScene {
     ObjImporter
-        .import(Path::new("t.obj"), text.as_bytes(), &ImportSettings::default())
+        .import(
+            Path::new("t.obj"),
+            text.as_bytes(),
+            &ImportSettings::default(),
+        )
         .unwrap()
 }
 
@@ -71,7 +75,9 @@ fn pc2_header_and_points_in_source_order() {
     let scene = obj(SPLIT_QUAD);
     assert_eq!(scene.meshes[0].vertex_count(), 5);
     let bake = shifted_bake(&scene, 3, 24.0);
-    let files = Pc2Exporter.export(&scene, &bake, &settings("out/x.pc2")).unwrap();
+    let files = Pc2Exporter
+        .export(&scene, &bake, &settings("out/x.pc2"))
+        .unwrap();
     assert_eq!(files.len(), 1);
     assert_eq!(files[0].path, PathBuf::from("out/x.pc2"));
     let b = &files[0].bytes;
@@ -97,7 +103,9 @@ fn pc2_header_and_points_in_source_order() {
 fn mdd_header_times_and_points_big_endian() {
     let scene = obj(SPLIT_QUAD);
     let bake = shifted_bake(&scene, 4, 25.0);
-    let files = MddExporter.export(&scene, &bake, &settings("x.mdd")).unwrap();
+    let files = MddExporter
+        .export(&scene, &bake, &settings("x.mdd"))
+        .unwrap();
     let b = &files[0].bytes;
     assert_eq!(i32_be(b, 0), 4, "frames");
     assert_eq!(i32_be(b, 4), 4, "points");
@@ -110,17 +118,18 @@ fn mdd_header_times_and_points_big_endian() {
         for p in 0..4 {
             let at = data + (f * 4 + p) * 12;
             let got = [f32_be(b, at), f32_be(b, at + 4), f32_be(b, at + 8)];
-            assert_eq!(got, [p as f32 + f as f32, 10.0 * f as f32, 100.0 * f as f32]);
+            assert_eq!(
+                got,
+                [p as f32 + f as f32, 10.0 * f as f32, 100.0 * f as f32]
+            );
         }
     }
 }
 
 #[test]
 fn several_meshes_get_one_sanitized_file_each() {
-    let scene = obj(
-        "o My Body/1\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n\
-         o Head\nv 5 0 0\nf 4 2 3\no Head\nv 6 0 0\nf 5 2 3\n",
-    );
+    let scene = obj("o My Body/1\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n\
+         o Head\nv 5 0 0\nf 4 2 3\no Head\nv 6 0 0\nf 5 2 3\n");
     assert_eq!(scene.meshes.len(), 3);
     let bake = shifted_bake(&scene, 2, 24.0);
     for (exporter, ext) in [
@@ -140,7 +149,9 @@ fn several_meshes_get_one_sanitized_file_each() {
             ]
         );
     }
-    let files = Pc2Exporter.export(&scene, &bake, &settings("out.pc2")).unwrap();
+    let files = Pc2Exporter
+        .export(&scene, &bake, &settings("out.pc2"))
+        .unwrap();
     // Head's points: the shared v2, v3 (written under the first object) and its own v4.
     assert_eq!(i32_le(&files[1].bytes, 16), 3);
     assert_eq!(f32_le(&files[1].bytes, 32 + 2 * 12), 5.0);
@@ -151,13 +162,24 @@ fn bad_bakes_are_refused_with_a_location() {
     let scene = obj(SPLIT_QUAD);
     let mut bake = shifted_bake(&scene, 2, 24.0);
     bake.meshes[0].frames[1].pop();
-    let err = Pc2Exporter.export(&scene, &bake, &settings("a.pc2")).unwrap_err();
-    assert_eq!(err.location.as_deref(), Some("baked.meshes[0].frames[1]"), "{err}");
-    assert!(err.message.contains("4 vertices but mesh 'Q' has 5"), "{err}");
+    let err = Pc2Exporter
+        .export(&scene, &bake, &settings("a.pc2"))
+        .unwrap_err();
+    assert_eq!(
+        err.location.as_deref(),
+        Some("baked.meshes[0].frames[1]"),
+        "{err}"
+    );
+    assert!(
+        err.message.contains("4 vertices but mesh 'Q' has 5"),
+        "{err}"
+    );
 
     let mut bake = shifted_bake(&scene, 2, 24.0);
     bake.meshes[0].frames[0][3][1] = f32::NAN;
-    let err = MddExporter.export(&scene, &bake, &settings("a.mdd")).unwrap_err();
+    let err = MddExporter
+        .export(&scene, &bake, &settings("a.mdd"))
+        .unwrap_err();
     assert!(err.message.contains("not finite"), "{err}");
 
     let mut bake = shifted_bake(&scene, 2, 24.0);

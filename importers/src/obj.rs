@@ -189,7 +189,11 @@ fn resolve_index(
             Ok(idx)
         }
     } else {
-        Err(err_at(path, line, format!("face: {what} index 0 (OBJ indices start at 1)")))
+        Err(err_at(
+            path,
+            line,
+            format!("face: {what} index 0 (OBJ indices start at 1)"),
+        ))
     }
 }
 
@@ -277,14 +281,8 @@ impl ObjDocument {
                     doc.positions.push(p);
                 }
                 "vt" => {
-                    let t = parse_coords::<2>(
-                        path,
-                        line_no,
-                        &tokens,
-                        1,
-                        3,
-                        "texture coordinate `vt`",
-                    )?;
+                    let t =
+                        parse_coords::<2>(path, line_no, &tokens, 1, 3, "texture coordinate `vt`")?;
                     doc.texcoords.push(t);
                 }
                 "vn" => {
@@ -422,7 +420,10 @@ impl ObjDocument {
             } else {
                 "vertices but no `f` lines"
             };
-            return Err(PluginError::invalid(path, format!("no faces: the file has {what}")));
+            return Err(PluginError::invalid(
+                path,
+                format!("no faces: the file has {what}"),
+            ));
         }
         Ok(doc)
     }
@@ -433,7 +434,11 @@ impl ObjDocument {
         path: &Path,
         settings: &ImportSettings,
     ) -> Result<Vec<DisplayMesh>, PluginError> {
-        let objects: Vec<&ObjObject> = self.objects.iter().filter(|o| !o.faces.is_empty()).collect();
+        let objects: Vec<&ObjObject> = self
+            .objects
+            .iter()
+            .filter(|o| !o.faces.is_empty())
+            .collect();
         if settings.merge_objects {
             let name = path
                 .file_stem()
@@ -533,7 +538,11 @@ impl ObjDocument {
                         Some(n) => {
                             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
                             if len > 1e-12 {
-                                [(n[0] / len) as f32, (n[1] / len) as f32, (n[2] / len) as f32]
+                                [
+                                    (n[0] / len) as f32,
+                                    (n[1] / len) as f32,
+                                    (n[2] / len) as f32,
+                                ]
                             } else {
                                 computed
                             }
@@ -586,7 +595,10 @@ pub fn triangulate(points: &[[f64; 3]]) -> Vec<[usize; 3]> {
     if n == 3 {
         return vec![[0, 1, 2]];
     }
-    let p: Vec<Vector3<f64>> = points.iter().map(|q| Vector3::new(q[0], q[1], q[2])).collect();
+    let p: Vec<Vector3<f64>> = points
+        .iter()
+        .map(|q| Vector3::new(q[0], q[1], q[2]))
+        .collect();
     // Newell's normal: robust best-fit plane orientation for non-planar polygons.
     let mut normal = Vector3::<f64>::zeros();
     for i in 0..n {
@@ -690,7 +702,12 @@ mod tests {
 
     #[test]
     fn collinear_polygon_still_gives_n_minus_2_triangles() {
-        let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
+        let pts = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+        ];
         assert_eq!(triangulate(&pts).len(), 2);
     }
 }

@@ -7,7 +7,11 @@ use springbake_importers::obj::ObjImporter;
 use std::path::Path;
 
 fn import(text: &str) -> Result<ImportedScene, PluginError> {
-    ObjImporter.import(Path::new("mem/test.obj"), text.as_bytes(), &ImportSettings::default())
+    ObjImporter.import(
+        Path::new("mem/test.obj"),
+        text.as_bytes(),
+        &ImportSettings::default(),
+    )
 }
 
 fn import_merged(text: &str) -> ImportedScene {
@@ -46,7 +50,11 @@ fn signed_area_xy(mesh: &DisplayMesh) -> f64 {
 #[test]
 fn obj_corpus_sweep() {
     let entries = springbake_testkit::corpus_entries(&["obj"]);
-    assert!(entries.len() >= 6, "corpus lists {} OBJ files", entries.len());
+    assert!(
+        entries.len() >= 6,
+        "corpus lists {} OBJ files",
+        entries.len()
+    );
     for e in entries {
         let bytes = std::fs::read(&e.path).unwrap();
         let result = ObjImporter.import(&e.path, &bytes, &ImportSettings::default());
@@ -65,9 +73,16 @@ fn obj_corpus_sweep() {
                         assert_eq!(n.len(), prim.positions.len());
                         for v in n {
                             let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                            assert!((len - 1.0).abs() < 1e-4, "{}: normal {v:?}", e.path.display());
+                            assert!(
+                                (len - 1.0).abs() < 1e-4,
+                                "{}: normal {v:?}",
+                                e.path.display()
+                            );
                         }
-                        assert!(prim.indices.iter().all(|&i| (i as usize) < prim.positions.len()));
+                        assert!(prim
+                            .indices
+                            .iter()
+                            .all(|&i| (i as usize) < prim.positions.len()));
                     }
                 }
             }
@@ -108,17 +123,49 @@ fn bad_files_name_the_line() {
 #[test]
 fn more_bad_lines_are_reported_with_their_line_numbers() {
     let cases = [
-        ("v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n", "line 3", "`x` is not a number"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n", "line 5", "at least 3 corners"),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n",
+            "line 3",
+            "`x` is not a number",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n",
+            "line 5",
+            "at least 3 corners",
+        ),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", "line 4", "index 0"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", "line 4", "relative vertex index -4"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/1 3/1\n", "line 4", "texture coordinate 1"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n", "line 5", "normal 2"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n", "line 3", "finite"),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n",
+            "line 4",
+            "relative vertex index -4",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/1 3/1\n",
+            "line 4",
+            "texture coordinate 1",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
+            "line 5",
+            "normal 2",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n",
+            "line 3",
+            "finite",
+        ),
         ("v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", "line 3", "finite"),
         ("v 0 0\n", "line 1", "3 to 7 numbers"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/a 2 3\n", "line 4", "`a` is not"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", "line 4", "is not v, v/vt"),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/a 2 3\n",
+            "line 4",
+            "`a` is not",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
+            "line 4",
+            "is not v, v/vt",
+        ),
     ];
     for (text, line, needle) in cases {
         let err = import(text).unwrap_err();
@@ -169,7 +216,11 @@ fn quad_triangulation_preserves_area() {
     let m = &s.meshes[0];
     assert_eq!(m.triangle_count(), 2);
     let expected = 2.0 * (9.0f64 + 9.0).sqrt();
-    assert!((area(m) - expected).abs() < 1e-5, "{} vs {expected}", area(m));
+    assert!(
+        (area(m) - expected).abs() < 1e-5,
+        "{} vs {expected}",
+        area(m)
+    );
 }
 
 #[test]
@@ -194,22 +245,39 @@ fn concave_ngon_triangulation_preserves_area_and_winding() {
     let s = import(&text).unwrap();
     let m = &s.meshes[0];
     assert_eq!(m.triangle_count(), 8);
-    assert!((signed_area_xy(m) - expected).abs() < 1e-5, "{}", signed_area_xy(m));
+    assert!(
+        (signed_area_xy(m) - expected).abs() < 1e-5,
+        "{}",
+        signed_area_xy(m)
+    );
     // No triangle folds over: every one winds like the polygon, so unsigned == signed.
-    assert!((area(m) - expected).abs() < 1e-5, "{} vs {expected}", area(m));
+    assert!(
+        (area(m) - expected).abs() < 1e-5,
+        "{} vs {expected}",
+        area(m)
+    );
 
     // An L-shaped hexagon in the XZ plane (normal -Y for this winding), area 3.
-    let s = import("v 0 0 0\nv 0 0 2\nv 1 0 2\nv 1 0 1\nv 2 0 1\nv 2 0 0\nf 1 2 3 4 5 6\n").unwrap();
-    assert!((area(&s.meshes[0]) - 3.0).abs() < 1e-6, "{}", area(&s.meshes[0]));
+    let s =
+        import("v 0 0 0\nv 0 0 2\nv 1 0 2\nv 1 0 1\nv 2 0 1\nv 2 0 0\nf 1 2 3 4 5 6\n").unwrap();
+    assert!(
+        (area(&s.meshes[0]) - 3.0).abs() < 1e-6,
+        "{}",
+        area(&s.meshes[0])
+    );
 }
 
 #[test]
 fn negative_indices_equal_positive_ones() {
-    let pos = import("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
-                      f 1/1 2/2 3/3 4/4\n")
+    let pos = import(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                      f 1/1 2/2 3/3 4/4\n",
+    )
     .unwrap();
-    let neg = import("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
-                      f -4/-4 -3/-3 -2/-2 -1/-1\n")
+    let neg = import(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                      f -4/-4 -3/-3 -2/-2 -1/-1\n",
+    )
     .unwrap();
     assert_eq!(pos.meshes[0].primitives, neg.meshes[0].primitives);
     assert_eq!(
@@ -219,7 +287,11 @@ fn negative_indices_equal_positive_ones() {
     // The corpus file (one quad by relative indices) imports as two triangles of area 1.
     let path = springbake_testkit::corpus_dir().join("bad/negative_indices.obj");
     let s = ObjImporter
-        .import(&path, &std::fs::read(&path).unwrap(), &ImportSettings::default())
+        .import(
+            &path,
+            &std::fs::read(&path).unwrap(),
+            &ImportSettings::default(),
+        )
         .unwrap();
     assert_eq!(s.meshes[0].name, "quad");
     assert_eq!(s.meshes[0].triangle_count(), 2);
@@ -303,7 +375,11 @@ fn missing_normals_are_computed_unit_length() {
         assert!((len - 1.0).abs() < 1e-5, "{v:?}");
     }
     // The apex of the first triangle (0,1,1) sees only that face: normal (0,-1,1)/sqrt2 ...
-    let apex = prim.positions.iter().position(|p| *p == [0.0, 1.0, 1.0]).unwrap();
+    let apex = prim
+        .positions
+        .iter()
+        .position(|p| *p == [0.0, 1.0, 1.0])
+        .unwrap();
     let e = std::f32::consts::FRAC_1_SQRT_2;
     let got = n[apex];
     assert!(
@@ -311,7 +387,11 @@ fn missing_normals_are_computed_unit_length() {
         "{got:?}"
     );
     // ... and the shared ridge vertices average the two faces: straight up +Z.
-    let ridge = prim.positions.iter().position(|p| *p == [1.0, 0.0, 0.0]).unwrap();
+    let ridge = prim
+        .positions
+        .iter()
+        .position(|p| *p == [1.0, 0.0, 0.0])
+        .unwrap();
     let got = n[ridge];
     assert!((got[2] - 1.0).abs() < 1e-5, "{got:?}");
 }
@@ -328,7 +408,12 @@ fn file_normals_and_uvs_are_kept_and_split_vertices() {
     // Vertex 2 appears with two different UVs: 5 display vertices over 4 points.
     assert_eq!(m.vertex_count(), 5);
     assert_eq!(m.source_point_count, 4);
-    assert!(p.normals.as_ref().unwrap().iter().all(|n| *n == [0.0, 0.0, 1.0]));
+    assert!(p
+        .normals
+        .as_ref()
+        .unwrap()
+        .iter()
+        .all(|n| *n == [0.0, 0.0, 1.0]));
     let uvs = p.uvs.as_ref().unwrap();
     assert!(uvs.contains(&[0.5, 0.5]) && uvs.contains(&[1.0, 0.0]));
     let points: Vec<u32> = m.source_point_of_vertex.clone();
@@ -340,12 +425,19 @@ fn blender_corpus_files_have_the_point_counts_blender_reports() {
     // Counts checked with bpy 5.0.1's obj_import: Body 8, Head 482, Cylinder 48.
     let dir = springbake_testkit::corpus_dir();
     for (file, expected) in [
-        ("blender/two_objects.obj", vec![("Body", 8usize), ("Head", 482)]),
+        (
+            "blender/two_objects.obj",
+            vec![("Body", 8usize), ("Head", 482)],
+        ),
         ("blender/cylinder.obj", vec![("Cylinder", 48)]),
     ] {
         let path = dir.join(file);
         let s = ObjImporter
-            .import(&path, &std::fs::read(&path).unwrap(), &ImportSettings::default())
+            .import(
+                &path,
+                &std::fs::read(&path).unwrap(),
+                &ImportSettings::default(),
+            )
             .unwrap();
         let got: Vec<(&str, usize)> = s
             .meshes
@@ -357,7 +449,11 @@ fn blender_corpus_files_have_the_point_counts_blender_reports() {
     // The cylinder: 24 side quads and two 24-gon caps.
     let path = dir.join("blender/cylinder.obj");
     let s = ObjImporter
-        .import(&path, &std::fs::read(&path).unwrap(), &ImportSettings::default())
+        .import(
+            &path,
+            &std::fs::read(&path).unwrap(),
+            &ImportSettings::default(),
+        )
         .unwrap();
     assert_eq!(s.meshes[0].triangle_count(), 24 * 2 + 2 * 22);
 }
