@@ -9,6 +9,8 @@
 //! frame 1 shows sample 0; with the modifier's default `frame_start = 0`, frame 0 shows sample 0
 //! and frame 1 sample 1. The test checks frames before, inside and after the cache.
 
+#![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
+
 use springbake_core::bake::{BakedMesh, BakedScene};
 use springbake_core::display::ImportedScene;
 use springbake_core::plugin::{ExportSettings, Exporter, ImportSettings, Importer};

@@ -1,6 +1,8 @@
 //! PC2/MDD byte layouts parsed back, point order through the source map, file naming and the
 //! errors a bad bake gets.
 
+#![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
+
 use springbake_core::bake::{BakedMesh, BakedScene};
 use springbake_core::display::ImportedScene;
 use springbake_core::plugin::{ExportSettings, Exporter, ImportSettings, Importer, OutputFile};

@@ -343,11 +343,7 @@ impl ObjDocument {
                         faces: Vec::new(),
                     });
                 }
-                "g" => {
-                    if !rest.is_empty() {
-                        doc.groups.push(rest.to_owned());
-                    }
-                }
+                "g" if !rest.is_empty() => doc.groups.push(rest.to_owned()),
                 "usemtl" => {
                     if rest.is_empty() {
                         material = None;
@@ -360,11 +356,7 @@ impl ObjDocument {
                         material = Some(id);
                     }
                 }
-                "mtllib" => {
-                    if !rest.is_empty() {
-                        doc.mtllibs.push(rest.to_owned());
-                    }
-                }
+                "mtllib" if !rest.is_empty() => doc.mtllibs.push(rest.to_owned()),
                 "l" | "p" => doc.skipped_lines_and_points += 1,
                 // s, vp, cstype, curv, surf, mg, usemap, lod, … carry nothing we simulate.
                 _ => {}
@@ -609,7 +601,7 @@ pub fn triangulate(points: &[[f64; 3]]) -> Vec<[usize; 3]> {
         normal.z += (a.x - b.x) * (a.y + b.y);
     }
     let len = normal.norm();
-    if !(len > 0.0) || !len.is_finite() {
+    if len <= 0.0 || !len.is_finite() {
         return (1..n - 1).map(|i| [0, i, i + 1]).collect();
     }
     let normal = normal / len;

@@ -1,6 +1,8 @@
 //! OBJ importer: the corpus sweep and the behaviours the simulation and the point caches rely
 //! on (triangulation, relative indices, objects, materials, normals, Blender's point order).
 
+#![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
+
 use springbake_core::display::{DisplayMesh, ImportedScene, UpAxis};
 use springbake_core::plugin::{ImportSettings, Importer, PluginError};
 use springbake_importers::obj::ObjImporter;
