@@ -51,7 +51,12 @@ fn check_frames(
             ),
         ));
     }
-    if let Some((f, frame)) = baked.frames.iter().enumerate().find(|(_, fr)| fr.len() != n) {
+    if let Some((f, frame)) = baked
+        .frames
+        .iter()
+        .enumerate()
+        .find(|(_, fr)| fr.len() != n)
+    {
         return Err(PluginError::invalid(
             out,
             format!(
@@ -108,7 +113,11 @@ fn source_frames(
                     Interpolation::Vertex => point,
                     Interpolation::FaceVarying => fv,
                 };
-                out.push([nv.values[e] as f32, nv.values[e + 1] as f32, nv.values[e + 2] as f32]);
+                out.push([
+                    nv.values[e] as f32,
+                    nv.values[e + 1] as f32,
+                    nv.values[e + 2] as f32,
+                ]);
                 fv += 1;
             }
         }
@@ -247,7 +256,10 @@ impl UsdExporter {
         temp: &Path,
     ) -> Result<(), PluginError> {
         if !(baked.fps.is_finite() && baked.fps > 0.0) {
-            return Err(PluginError::invalid(out, format!("fps {} is not positive", baked.fps)));
+            return Err(PluginError::invalid(
+                out,
+                format!("fps {} is not positive", baked.fps),
+            ));
         }
         let mut items = Vec::new();
         for bm in &baked.meshes {
@@ -288,12 +300,14 @@ impl UsdExporter {
                 for (prim_path, frames, drop_primvar) in &prepared {
                     let d = frames_dict(py, frames).map_err(to_err)?;
                     d.set_item("prim_path", prim_path).map_err(to_err)?;
-                    d.set_item("drop_primvar_normals", *drop_primvar).map_err(to_err)?;
+                    d.set_item("drop_primvar_normals", *drop_primvar)
+                        .map_err(to_err)?;
                     list.append(d).map_err(to_err)?;
                 }
                 spec.set_item("meshes", list).map_err(to_err)?;
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
-                spec.set_item("frame_count", baked.frame_count).map_err(to_err)?;
+                spec.set_item("frame_count", baked.frame_count)
+                    .map_err(to_err)?;
                 bridge
                     .call_method1(
                         "write_source_stage",
@@ -323,10 +337,14 @@ impl UsdExporter {
                         .iter()
                         .flat_map(|v| v.to_le_bytes())
                         .collect();
-                    d.set_item("world", PyBytes::new(py, &world)).map_err(to_err)?;
-                    let tris = mesh.triangles();
-                    d.set_item("counts", PyBytes::new(py, &i32_bytes(tris.iter().map(|_| 3))))
+                    d.set_item("world", PyBytes::new(py, &world))
                         .map_err(to_err)?;
+                    let tris = mesh.triangles();
+                    d.set_item(
+                        "counts",
+                        PyBytes::new(py, &i32_bytes(tris.iter().map(|_| 3))),
+                    )
+                    .map_err(to_err)?;
                     d.set_item(
                         "indices",
                         PyBytes::new(py, &i32_bytes(tris.iter().flatten().map(|&i| i as i32))),
@@ -339,9 +357,10 @@ impl UsdExporter {
                     )
                     .map_err(to_err)?;
                     if mesh.primitives.iter().all(|p| p.uvs.is_some()) {
-                        let uvs = mesh.primitives.iter().flat_map(|p| {
-                            p.uvs.iter().flatten().flat_map(|t| t.iter().copied())
-                        });
+                        let uvs = mesh
+                            .primitives
+                            .iter()
+                            .flat_map(|p| p.uvs.iter().flatten().flat_map(|t| t.iter().copied()));
                         d.set_item("uvs", PyBytes::new(py, &f32_bytes(uvs)))
                             .map_err(to_err)?;
                     } else {
@@ -352,7 +371,8 @@ impl UsdExporter {
                 let spec = PyDict::new(py);
                 spec.set_item("meshes", list).map_err(to_err)?;
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
-                spec.set_item("frame_count", baked.frame_count).map_err(to_err)?;
+                spec.set_item("frame_count", baked.frame_count)
+                    .map_err(to_err)?;
                 spec.set_item(
                     "up_axis",
                     match scene.up_axis {

@@ -87,7 +87,11 @@ pub fn read_stage(path: &Path) -> Result<RawStage, PluginError> {
             .at("metersPerUnit"));
         }
         let mut meshes = Vec::new();
-        for m in result.get_item("meshes").and_then(|v| v.try_iter()).map_err(to_err)? {
+        for m in result
+            .get_item("meshes")
+            .and_then(|v| v.try_iter())
+            .map_err(to_err)?
+        {
             let m = m.map_err(to_err)?;
             let location: Option<String> = m.get_item("path").and_then(|p| p.extract()).ok();
             meshes.push(raw_mesh(&m).map_err(|e| {

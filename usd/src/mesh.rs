@@ -100,10 +100,7 @@ impl RawMesh {
             if i < 0 || i as usize >= self.points.len() {
                 return Err(PluginError::invalid(
                     file,
-                    format!(
-                        "index {i} is outside points (0..{})",
-                        self.points.len()
-                    ),
+                    format!("index {i} is outside points (0..{})", self.points.len()),
                 )
                 .at(format!("{}.faceVertexIndices[{j}]", self.path)));
             }
@@ -145,7 +142,7 @@ fn check_primvar(
 ) -> Result<(), PluginError> {
     let want = expected_len(pv.interpolation, mesh);
     let have = pv.values.len() / dims;
-    if have != want || pv.values.len() % dims != 0 {
+    if have != want || have * dims != pv.values.len() {
         return Err(PluginError::invalid(
             file,
             format!(
@@ -156,8 +153,13 @@ fn check_primvar(
         .at(format!("{}.{attr}", mesh.path)));
     }
     if let Some(i) = pv.values.iter().position(|v| !v.is_finite()) {
-        return Err(PluginError::invalid(file, format!("{attr} value is not finite"))
-            .at(format!("{}.{attr}[{}]", mesh.path, i / dims)));
+        return Err(
+            PluginError::invalid(file, format!("{attr} value is not finite")).at(format!(
+                "{}.{attr}[{}]",
+                mesh.path,
+                i / dims
+            )),
+        );
     }
     Ok(())
 }
@@ -191,7 +193,11 @@ pub fn build_display_mesh(raw: &RawMesh, file: &Path) -> Result<DisplayMesh, Plu
             let point = raw.indices[fv] as usize;
             let normal = raw.normals.as_ref().map(|n| {
                 let e = element(n.interpolation, face, fv, point) * 3;
-                [n.values[e] as f32, n.values[e + 1] as f32, n.values[e + 2] as f32]
+                [
+                    n.values[e] as f32,
+                    n.values[e + 1] as f32,
+                    n.values[e + 2] as f32,
+                ]
             });
             let uv = raw.st.as_ref().map(|s| {
                 let e = element(s.interpolation, face, fv, point) * 2;
@@ -299,7 +305,11 @@ pub fn triangulate(poly: &[[f64; 3]]) -> Vec<[usize; 3]> {
     while remaining.len() > 3 {
         let m = remaining.len();
         let ear = (0..m).find(|&i| {
-            let (ia, ib, ic) = (remaining[(i + m - 1) % m], remaining[i], remaining[(i + 1) % m]);
+            let (ia, ib, ic) = (
+                remaining[(i + m - 1) % m],
+                remaining[i],
+                remaining[(i + 1) % m],
+            );
             let (a, b, c) = (pts[ia], pts[ib], pts[ic]);
             if cross(a, b, c) <= 0.0 {
                 return false;
@@ -318,7 +328,11 @@ pub fn triangulate(poly: &[[f64; 3]]) -> Vec<[usize; 3]> {
         match ear {
             Some(i) => {
                 let m = remaining.len();
-                out.push([remaining[(i + m - 1) % m], remaining[i], remaining[(i + 1) % m]]);
+                out.push([
+                    remaining[(i + m - 1) % m],
+                    remaining[i],
+                    remaining[(i + 1) % m],
+                ]);
                 remaining.remove(i);
             }
             None => {
@@ -409,7 +423,14 @@ fn unit(n: Vector3<f64>) -> [f32; 3] {
 
 /// `[min x, min y, min z, max x, max y, max z]` of `points`.
 pub fn extent(points: &[[f32; 3]]) -> [f32; 6] {
-    let mut e = [f32::INFINITY, f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+    let mut e = [
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NEG_INFINITY,
+        f32::NEG_INFINITY,
+    ];
     for p in points {
         for k in 0..3 {
             e[k] = e[k].min(p[k]);
@@ -453,7 +474,9 @@ mod tests {
             assert!(tn.dot(&n) > 0.0, "{t:?}");
         }
         // A fan from corner 0 would cover area outside the L; ear clipping must not.
-        assert!(tris.iter().all(|t| !(t.contains(&0) && t.contains(&2) && t.contains(&4))));
+        assert!(tris
+            .iter()
+            .all(|t| !(t.contains(&0) && t.contains(&2) && t.contains(&4))));
     }
 
     #[test]

@@ -143,7 +143,11 @@ fn load_bridge<'py>(py: Python<'py>, file: &Path) -> Result<Bound<'py, PyModule>
     }
     py.import("pxr.Usd").map_err(|e| missing(e.to_string()))?;
     let code = CString::new(BRIDGE_SOURCE).map_err(|e| {
-        PluginError::new(IoErrorKind::MissingDependency, file, format!("bridge source: {e}"))
+        PluginError::new(
+            IoErrorKind::MissingDependency,
+            file,
+            format!("bridge source: {e}"),
+        )
     })?;
     let module = PyModule::from_code(py, &code, c"usd_bridge.py", c"springbake_usd_bridge")
         .map_err(|e| {

@@ -1,11 +1,11 @@
 //! USD export round trips: a synthetic bake (known per-frame displacement, no solver) written
 //! as `.usda`/`.usdc`, then read back by usd-core's own API and by Blender.
 
+#![allow(clippy::unwrap_used)] // test helpers outside #[test] fns unwrap too
+
 use serde_json::Value;
 use springbake_core::bake::{BakedMesh, BakedScene};
-use springbake_core::display::{
-    DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis,
-};
+use springbake_core::display::{DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis};
 use springbake_core::nalgebra::{Matrix4, Point3, Rotation3, Translation3, Vector3};
 use springbake_core::plugin::{
     CacheKind, ExportSettings, Exporter, ImportSettings, Importer, IoErrorKind,
@@ -113,10 +113,7 @@ fn usd_source_round_trips_through_usd_core_as_usda_and_usdc() {
         assert_eq!(json["start"], 0.0);
         assert_eq!(json["end"], (frames - 1) as f64);
         // The flattened source keeps every mesh, baked or not.
-        assert_eq!(
-            json["meshes"].as_object().unwrap().len(),
-            raw.meshes.len()
-        );
+        assert_eq!(json["meshes"].as_object().unwrap().len(), raw.meshes.len());
         for m in &raw.meshes {
             let got = &json["meshes"][&m.path];
             assert_eq!(
@@ -160,7 +157,11 @@ fn usd_source_round_trips_through_usd_core_as_usda_and_usdc() {
         if out_name.starts_with("two") {
             // Frame 0 is the rest shape: the hard-edged cube's recomputed normals equal the
             // authored ones (smoothing groups kept).
-            let cube = raw.meshes.iter().find(|m| m.path == "/root/Body/Cube").unwrap();
+            let cube = raw
+                .meshes
+                .iter()
+                .find(|m| m.path == "/root/Body/Cube")
+                .unwrap();
             let authored = &cube.normals.as_ref().unwrap().values;
             let first = json["meshes"]["/root/Body/Cube"]["first_normals"]
                 .as_array()
@@ -313,8 +314,7 @@ fn blender_plays_the_exported_points_at_our_baked_positions() {
             let name = mesh.source_key.rsplit('/').next().unwrap();
             let ob = &objects
                 .get(name)
-                .unwrap_or_else(|| panic!("Blender has no object {name}: {objects:?}"))
-                ["frames"];
+                .unwrap_or_else(|| panic!("Blender has no object {name}: {objects:?}"))["frames"];
             for &f in &checked {
                 let verts = ob[f.to_string()].as_array().unwrap();
                 assert_eq!(verts.len(), mesh.source_point_count, "{name}");

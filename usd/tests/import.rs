@@ -1,5 +1,7 @@
 //! USD import against the shared corpus and against usd-core's own answers.
 
+#![allow(clippy::unwrap_used)] // test helpers outside #[test] fns unwrap too
+
 use springbake_core::display::{ImportedScene, UpAxis};
 use springbake_core::nalgebra::Point3;
 use springbake_core::plugin::{ImportSettings, Importer, IoErrorKind, PluginError};
@@ -110,7 +112,11 @@ fn two_objects_hierarchy_places_vertices_like_usd_core() {
     // (0, 0, 1): (-0.45·cos30 + 0.3·sin30, -0.45·sin30 - 0.3·cos30, 0.7).
     let (s, c) = 30f64.to_radians().sin_cos();
     let expected = Point3::new(-0.45 * c + 0.3 * s, -0.45 * s - 0.3 * c, 0.7);
-    let v = cube.source_point_of_vertex.iter().position(|&p| p == 0).unwrap();
+    let v = cube
+        .source_point_of_vertex
+        .iter()
+        .position(|&p| p == 0)
+        .unwrap();
     let got = cube.world_positions()[v];
     assert!((got - expected).norm() < 1e-6, "{got} vs {expected}");
 
@@ -118,7 +124,10 @@ fn two_objects_hierarchy_places_vertices_like_usd_core() {
     let out = run_python_client("usd_world_points.py", &[path.to_str().unwrap()]);
     let json = last_json_line(&out);
     assert_eq!(json["up_axis"], "Z");
-    assert_eq!(scene.meshes.len(), json["meshes"].as_object().unwrap().len());
+    assert_eq!(
+        scene.meshes.len(),
+        json["meshes"].as_object().unwrap().len()
+    );
     for m in &scene.meshes {
         let pts = json["meshes"][&m.source_key].as_array().unwrap();
         assert_eq!(pts.len(), m.source_point_count);
@@ -129,7 +138,11 @@ fn two_objects_hierarchy_places_vertices_like_usd_core() {
                 q[1].as_f64().unwrap(),
                 q[2].as_f64().unwrap(),
             );
-            assert!((w - q).norm() < 1e-5, "{} vertex {v}: {w} vs {q}", m.source_key);
+            assert!(
+                (w - q).norm() < 1e-5,
+                "{} vertex {v}: {w} vs {q}",
+                m.source_key
+            );
         }
     }
     let sphere = scene
@@ -186,7 +199,11 @@ def Mesh "L" {
     assert_eq!(scene.meters_per_unit, 0.01);
     let m = &scene.meshes[0];
     let p = &m.primitives[0];
-    assert_eq!(p.positions.len(), 6, "vertex primvars must not split vertices");
+    assert_eq!(
+        p.positions.len(),
+        6,
+        "vertex primvars must not split vertices"
+    );
     assert_eq!(p.uvs.as_ref().unwrap()[2], [1.0, 1.0]);
     assert_eq!(p.uvs.as_ref().unwrap()[3], [0.0, 0.0]);
     assert_eq!(m.triangle_count(), 4);
@@ -214,7 +231,11 @@ fn unreadable_file_is_an_io_error_and_bytes_alone_still_import() {
     // Bytes handed over from memory for a path that is not on disk.
     let bytes = std::fs::read(corpus_dir().join("blender/grid_open.usda")).unwrap();
     let scene = UsdImporter
-        .import(Path::new("memory/grid.usda"), &bytes, &ImportSettings::default())
+        .import(
+            Path::new("memory/grid.usda"),
+            &bytes,
+            &ImportSettings::default(),
+        )
         .unwrap();
     assert_eq!(scene.source.path, Path::new("memory/grid.usda"));
     assert!(scene.meshes[0].triangle_count() > 0);
