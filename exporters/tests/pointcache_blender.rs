@@ -21,15 +21,16 @@ use std::path::Path;
 
 const SAMPLES: usize = 6;
 
-/// Faces refer to vertices out of `v` order, object B uses a vertex written under A, some
-/// vertices are unused, relative indices and a concave n-gon: Blender numbers each object's
+/// Faces refer to vertices out of `v` order, object B uses vertices written under A and has a
+/// loose vertex from an `l` element and an unused one, C is a concave pentagon plus a
+/// degenerate face (Blender drops the face, keeps its vertices): Blender numbers each object's
 /// points as the used `v` lines in file order, and so must we.
 const SHUFFLED_OBJ: &str = "o A\nv 0 0 0\nv 1 0.2 0\nv 2 0 0.3\nv 3 0.5 0\nv 4 1 0\n\
                             f 5 1 3\nf -1 -4 -2\n\
                             o B\nv 10 0 0\nv 11 1 0\nv 12 0 1\nv 13 1 1\nv 14 2 2\n\
-                            f 7 2 6\nf 8 7 6\n\
-                            o C\nv 0 0 5\nv 2 0 5\nv 2 2 5\nv 1 1 5\nv 0 2 5\nv 9 9 9\n\
-                            f 16 15 14 13 12\n";
+                            f 7 2 6\nf 8 7 6\nl 10 1\n\
+                            o C\nv 0 0 5\nv 2 0 5\nv 2 2 5\nv 1 1 5\nv 0 2 5\nv 9 9 9\nv 8 8 8\n\
+                            f 15 14 13 12 11\nf 16 17 17\n";
 const FPS: f64 = 24.0;
 
 /// Must match `displacement` in tests/clients/pointcache_blender.py.
@@ -104,6 +105,10 @@ fn blender_mesh_cache_plays_pc2_and_mdd_on_its_obj_import() {
             .unwrap();
         for m in &scene.meshes {
             point_counts.insert(m.name.clone(), m.source_point_count);
+        }
+        if file == "shuffled.obj" {
+            let counts: Vec<usize> = scene.meshes.iter().map(|m| m.source_point_count).collect();
+            assert_eq!(counts, vec![5, 6, 7]);
         }
         let bake = synthetic_bake(&scene);
         let stem = Path::new(file)

@@ -16,10 +16,14 @@
 //!   may use `v` entries written under an earlier object;
 //! - `usemtl` state carries across `o` lines.
 //!
+//! - `l` (polyline) elements add their vertices to the object as loose vertices; `p` elements
+//!   are ignored; a face with a repeated corner is dropped but its vertices stay.
+//!
 //! `DisplayMesh::source_point_of_vertex` maps every display vertex (a unique `v/vt/vn` tuple
-//! within one material primitive) to that per-object point index. Points used only by `l` or
-//! `p` elements are not part of the numbering (lines and points are skipped; Blender would keep
-//! them as loose vertices).
+//! within one material primitive) to that per-object point index. Lines are not simulated, but
+//! their loose points are kept as display vertices no triangle uses (in the first primitive), so
+//! every point Blender's object has gets a position in a point cache. Degenerate faces are kept
+//! as zero-area triangles.
 //!
 //! Faces with more than three corners are triangulated by ear clipping in the face's best-fit
 //! (Newell) plane, so concave n-gons keep their area; a degenerate polygon falls back to
@@ -89,6 +93,8 @@ pub struct Face {
 pub struct ObjObject {
     pub name: String,
     pub faces: Vec<Face>,
+    /// 0-based `v` indices used by this object's `l` (polyline) elements, in file order.
+    pub line_points: Vec<u32>,
 }
 
 /// A parsed OBJ file, before it is turned into display meshes.
@@ -105,7 +111,7 @@ pub struct ObjDocument {
     pub mtllibs: Vec<String>,
     /// `g` group names seen (groups do not split objects, as in Blender's default import).
     pub groups: Vec<String>,
-    /// Number of `l` and `p` elements skipped.
+    /// Number of `l` and `p` elements (not simulated; see the module doc).
     pub skipped_lines_and_points: usize,
 }
 
@@ -239,11 +245,14 @@ impl ObjDocument {
         doc.objects.push(ObjObject {
             name: stem,
             faces: Vec::new(),
+            line_points: Vec::new(),
         });
         let mut material: Option<usize> = None;
         let mut material_ids: HashMap<String, usize> = HashMap::new();
         // Faces with unresolved indices: (object, face index in object, raw corners).
         let mut raw_faces: Vec<(usize, Vec<RawCorner>, Option<usize>, usize)> = Vec::new();
+        // `l` elements: (object, vertex indices, line number).
+        let mut raw_lines: Vec<(usize, Vec<i64>, usize)> = Vec::new();
 
         let mut lines = text.lines().enumerate().peekable();
         while let Some((i, first)) = lines.next() {
@@ -341,6 +350,7 @@ impl ObjDocument {
                     doc.objects.push(ObjObject {
                         name,
                         faces: Vec::new(),
+                        line_points: Vec::new(),
                     });
                 }
                 "g" if !rest.is_empty() => doc.groups.push(rest.to_owned()),
@@ -357,7 +367,29 @@ impl ObjDocument {
                     }
                 }
                 "mtllib" if !rest.is_empty() => doc.mtllibs.push(rest.to_owned()),
-                "l" | "p" => doc.skipped_lines_and_points += 1,
+                "l" => {
+                    doc.skipped_lines_and_points += 1;
+                    if tokens.len() < 2 {
+                        return Err(err_at(
+                            path,
+                            line_no,
+                            format!(
+                                "line element needs at least 2 vertices, found {}",
+                                tokens.len()
+                            ),
+                        ));
+                    }
+                    let points = tokens
+                        .iter()
+                        .map(|t| {
+                            let v = t.split('/').next().unwrap_or("");
+                            resolve_index(path, line_no, v, doc.positions.len(), "vertex")
+                        })
+                        .collect::<Result<Vec<_>, _>>()?;
+                    raw_lines.push((doc.objects.len() - 1, points, line_no));
+                }
+                // Blender ignores `p` too ("OBJ element not recognized").
+                "p" => doc.skipped_lines_and_points += 1,
                 // s, vp, cstype, curv, surf, mg, usemap, lod, … carry nothing we simulate.
                 _ => {}
             }
@@ -400,6 +432,16 @@ impl ObjDocument {
             }
         }
 
+        for (object, raw, line) in raw_lines {
+            let points = raw
+                .into_iter()
+                .map(|v| checked_index(path, line, v, doc.positions.len(), "vertex", "v"))
+                .collect::<Result<Vec<_>, _>>()?;
+            if let Some(obj) = doc.objects.get_mut(object) {
+                obj.line_points.extend(points);
+            }
+        }
+
         if doc.positions.is_empty() {
             return Err(PluginError::invalid(
                 path,
@@ -437,24 +479,50 @@ impl ObjDocument {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "merged".into());
             let faces: Vec<&Face> = objects.iter().flat_map(|o| o.faces.iter()).collect();
-            Ok(vec![self.build_mesh(name, "object:0".into(), &faces)])
+            let loose: Vec<u32> = self
+                .objects
+                .iter()
+                .flat_map(|o| o.line_points.iter().copied())
+                .collect();
+            Ok(vec![self.build_mesh(
+                name,
+                "object:0".into(),
+                &faces,
+                &loose,
+            )])
         } else {
             Ok(objects
                 .iter()
                 .enumerate()
                 .map(|(i, o)| {
                     let faces: Vec<&Face> = o.faces.iter().collect();
-                    self.build_mesh(o.name.clone(), format!("object:{i}"), &faces)
+                    self.build_mesh(
+                        o.name.clone(),
+                        format!("object:{i}"),
+                        &faces,
+                        &o.line_points,
+                    )
                 })
                 .collect())
         }
     }
 
-    fn build_mesh(&self, name: String, source_key: String, faces: &[&Face]) -> DisplayMesh {
+    /// One display mesh from `faces`; `line_points` (the object's `l` vertices) join the point
+    /// numbering as Blender's loose vertices do, and those no face uses become display
+    /// vertices of the first primitive that no triangle refers to, so a point cache still has
+    /// a position for every point Blender's object has.
+    fn build_mesh(
+        &self,
+        name: String,
+        source_key: String,
+        faces: &[&Face],
+        line_points: &[u32],
+    ) -> DisplayMesh {
         // Points: the used `v` entries in file order (Blender's numbering).
         let mut used: Vec<u32> = faces
             .iter()
             .flat_map(|f| f.corners.iter().map(|c| c.v))
+            .chain(line_points.iter().copied())
             .collect();
         used.sort_unstable();
         used.dedup();
@@ -563,6 +631,31 @@ impl ObjDocument {
                 indices,
                 material: material.and_then(|m| self.materials.get(m).cloned()),
             });
+        }
+
+        // Loose points (only `l` elements use them): unreferenced vertices of the first
+        // primitive. The solver's embedding carries them along with the nearest cell.
+        let mut on_face = vec![false; used.len()];
+        for f in faces {
+            for c in &f.corners {
+                on_face[local_of(c.v) as usize] = true;
+            }
+        }
+        let loose: Vec<u32> = (0..used.len() as u32)
+            .filter(|&q| !on_face[q as usize])
+            .collect();
+        if let Some(first) = primitives.first_mut() {
+            let at = first.positions.len();
+            for &q in &loose {
+                first.positions.push(point_positions[q as usize]);
+                if let Some(n) = first.normals.as_mut() {
+                    n.push(point_normals[q as usize]);
+                }
+                if let Some(t) = first.uvs.as_mut() {
+                    t.push([0.0, 0.0]);
+                }
+            }
+            source_point_of_vertex.splice(at..at, loose.iter().copied());
         }
 
         DisplayMesh {

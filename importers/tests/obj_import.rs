@@ -459,3 +459,30 @@ fn blender_corpus_files_have_the_point_counts_blender_reports() {
         .unwrap();
     assert_eq!(s.meshes[0].triangle_count(), 24 * 2 + 2 * 22);
 }
+
+#[test]
+fn line_vertices_are_loose_points_and_p_is_ignored_as_in_blender() {
+    // Blender 5.0.1 imports this as 5 vertices (the face's 3 and the line's 2), not the `p` one.
+    let s = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv 6 6 6\nv 7 7 7\nf 1 2 3\nl 4 5\np 6\n")
+        .unwrap();
+    let m = &s.meshes[0];
+    assert_eq!(m.source_point_count, 5);
+    assert_eq!(m.triangle_count(), 1);
+    assert_eq!(m.vertex_count(), 5);
+    let xs: Vec<f32> = m
+        .to_source_points(&m.primitives[0].positions, [f32::NAN; 3])
+        .iter()
+        .map(|p| p[0])
+        .collect();
+    assert_eq!(xs, vec![0.0, 1.0, 0.0, 5.0, 6.0]);
+    // An out-of-range line index is an error on its line.
+    let err = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nl 1 9\n").unwrap_err();
+    assert_eq!(err.location.as_deref(), Some("line 5"), "{err}");
+}
+
+#[test]
+fn degenerate_faces_keep_their_points() {
+    // Blender drops `f 4 5 5` but keeps vertices 4 and 5: 5 points.
+    let s = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv 6 6 6\nf 1 2 3\nf 4 5 5\n").unwrap();
+    assert_eq!(s.meshes[0].source_point_count, 5);
+}
