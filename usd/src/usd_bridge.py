@@ -188,6 +188,11 @@ def _author_frames(mesh, item, frame_count, location):
     if normals is not None:
         normals_attr = mesh.CreateNormalsAttr()
         mesh.SetNormalsInterpolation(item["normals_interpolation"])
+    # A source that was already animated: its old samples would interleave with ours.
+    for attr in (points_attr, extent_attr, normals_attr):
+        if attr is not None:
+            for t in attr.GetTimeSamples():
+                attr.ClearAtTime(t)
     nstride = normal_count * 3 * 4
     for f in range(frame_count):
         t = Usd.TimeCode(float(f))

@@ -92,6 +92,7 @@ fn usd_source_round_trips_through_usd_core_as_usda_and_usdc() {
         ("blender/cylinder.usdc", "cylinder_baked.usdc"),
         ("blender/two_objects.usda", "two_baked.usdc"),
         ("blender/two_objects.usda", "two_baked.usda"),
+        ("blender/cylinder.usdz", "cylinder_from_usdz.usda"),
     ] {
         let source = corpus_dir().join(source);
         let scene = import(&source);
@@ -339,4 +340,42 @@ fn blender_plays_the_exported_points_at_our_baked_positions() {
         }
     }
     assert!(compared > 1000, "{compared}");
+}
+
+#[test]
+fn old_points_samples_of_an_animated_source_are_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("animated.usda");
+    std::fs::write(
+        &source,
+        r#"#usda 1.0
+(
+    upAxis = "Z"
+)
+def Mesh "tri" {
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    point3f[] points.timeSamples = {
+        10: [(0, 0, 5), (1, 0, 5), (0, 1, 5)],
+        20: [(0, 0, 9), (1, 0, 9), (0, 1, 9)],
+    }
+}
+"#,
+    )
+    .unwrap();
+    let scene = import(&source);
+    // The rest shape is the untimed value.
+    assert_eq!(scene.meshes[0].primitives[0].positions[1], [1.0, 0.0, 0.0]);
+    let baked = bake(&scene, 3, 24.0);
+    let out = dir.path().join("out.usda");
+    export(&scene, &baked, &out);
+    let json = readback(&out);
+    let m = &json["meshes"]["/tri"];
+    assert_eq!(f64s(&m["times"]), vec![0.0, 1.0, 2.0]);
+    let p = f64s(&m["points"][2][1]);
+    let want = [1.02, 0.0, -0.02];
+    assert!((0..3).all(|k| (p[k] - want[k]).abs() < 1e-6), "{p:?}");
+    // No normals were authored, none are invented.
+    assert_eq!(f64s(&m["normal_times"]).len(), 0);
 }
