@@ -717,42 +717,61 @@ pub fn triangulate(points: &[[f64; 3]]) -> Vec<[usize; 3]> {
     let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
         (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
     };
-    let mut ring: Vec<usize> = (0..n).collect();
+    // Ring as a doubly linked list. Only reflex (or flat) corners can lie inside an ear of a
+    // simple polygon, and clipping an ear never makes a corner reflex, so the candidates are
+    // the corners reflex at the start, pruned as they turn convex: a convex n-gon is O(n).
+    let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
+    let mut next: Vec<usize> = (0..n).map(|i| (i + 1) % n).collect();
+    let mut alive = vec![true; n];
+    let corner = |prev: &[usize], next: &[usize], b: usize| cross(q[prev[b]], q[b], q[next[b]]);
+    let mut reflex: Vec<bool> = (0..n).map(|b| corner(&prev, &next, b) <= eps).collect();
+    let mut candidates: Vec<usize> = (0..n).filter(|&b| reflex[b]).collect();
+    // Bound on containment tests; past it the rest is fanned (hostile huge concave faces).
+    let mut budget: u64 = 50_000_000;
     let mut out = Vec::with_capacity(n - 2);
-    while ring.len() > 3 {
-        let m = ring.len();
-        let mut ear = None;
-        for k in 0..m {
-            let (ia, ib, ic) = (ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]);
-            let (a, b, c) = (q[ia], q[ib], q[ic]);
-            if cross(a, b, c) <= eps {
-                continue; // reflex or degenerate corner
-            }
-            let blocked = ring.iter().any(|&j| {
-                if j == ia || j == ib || j == ic {
+    let mut remaining = n;
+    let mut cur = 0;
+    let mut stalls = 0;
+    while remaining > 3 {
+        let (a, c) = (prev[cur], next[cur]);
+        let is_ear = !reflex[cur] && {
+            let (qa, qb, qc) = (q[a], q[cur], q[c]);
+            budget = budget.saturating_sub(candidates.len() as u64);
+            !candidates.iter().any(|&j| {
+                if !alive[j] || !reflex[j] || j == a || j == cur || j == c {
                     return false;
                 }
                 let x = q[j];
-                if x == a || x == b || x == c {
+                if x == qa || x == qb || x == qc {
                     return false;
                 }
-                cross(a, b, x) >= -eps && cross(b, c, x) >= -eps && cross(c, a, x) >= -eps
-            });
-            if !blocked {
-                ear = Some(k);
-                break;
+                cross(qa, qb, x) >= -eps && cross(qb, qc, x) >= -eps && cross(qc, qa, x) >= -eps
+            })
+        };
+        // A full lap without an ear (degenerate or self-intersecting input) or an exhausted
+        // budget: clip the current corner anyway so the walk always ends in n - 2 triangles.
+        if is_ear || stalls > remaining || budget == 0 {
+            out.push([a, cur, c]);
+            alive[cur] = false;
+            next[a] = c;
+            prev[c] = a;
+            remaining -= 1;
+            for v in [a, c] {
+                reflex[v] = corner(&prev, &next, v) <= eps;
+                if reflex[v] && !candidates.contains(&v) {
+                    candidates.push(v); // only after a forced clip of broken input
+                }
             }
+            candidates.retain(|&j| alive[j] && reflex[j]);
+            cur = a;
+            stalls = 0;
+        } else {
+            cur = next[cur];
+            stalls += 1;
         }
-        // Degenerate or self-intersecting input: clip the first non-reflex corner (or any).
-        let k = ear.unwrap_or_else(|| {
-            (0..m)
-                .find(|&k| cross(q[ring[(k + m - 1) % m]], q[ring[k]], q[ring[(k + 1) % m]]) >= 0.0)
-                .unwrap_or(0)
-        });
-        out.push([ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]]);
-        ring.remove(k);
     }
-    out.push([ring[0], ring[1], ring[2]]);
+    let a = prev[cur];
+    out.push([a, cur, next[cur]]);
     out
 }
 
@@ -783,6 +802,47 @@ mod tests {
         let total: f64 = tris.iter().map(|t| area2(&pts, t) / 2.0).sum();
         assert!((total - 3.0).abs() < 1e-12, "{total}");
         assert!(tris.iter().all(|t| area2(&pts, t) > 0.0), "{tris:?}");
+    }
+
+    fn polygon_area(pts: &[[f64; 3]]) -> f64 {
+        let n = pts.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (pts[i], pts[(i + 1) % n]);
+                (a[0] * b[1] - b[0] * a[1]) / 2.0
+            })
+            .sum()
+    }
+
+    #[test]
+    fn big_convex_and_spiky_polygons_triangulate_with_their_area() {
+        // 20 000-gon circle: linear time on convex input.
+        let circle: Vec<[f64; 3]> = (0..20_000)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 20_000.0;
+                [a.cos(), a.sin(), 0.0]
+            })
+            .collect();
+        // 2 000-corner star: half the corners reflex.
+        let star: Vec<[f64; 3]> = (0..2_000)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 2_000.0;
+                let r = if k % 2 == 0 { 1.0 } else { 0.7 };
+                [r * a.cos(), r * a.sin(), 0.0]
+            })
+            .collect();
+        for pts in [circle, star] {
+            let tris = triangulate(&pts);
+            assert_eq!(tris.len(), pts.len() - 2);
+            let signed: f64 = tris.iter().map(|t| area2(&pts, t) / 2.0).sum();
+            let unsigned: f64 = tris.iter().map(|t| area2(&pts, t).abs() / 2.0).sum();
+            let want = polygon_area(&pts);
+            assert!((signed - want).abs() < 1e-9, "{signed} vs {want}");
+            assert!(
+                (unsigned - want).abs() < 1e-9,
+                "folded triangles: {unsigned} vs {want}"
+            );
+        }
     }
 
     #[test]
