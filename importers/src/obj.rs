@@ -26,8 +26,9 @@
 //! as zero-area triangles.
 //!
 //! Faces with more than three corners are triangulated by ear clipping in the face's best-fit
-//! (Newell) plane, so concave n-gons keep their area; a degenerate polygon falls back to
-//! clipping whatever corner keeps the walk going. Missing normals are computed per object point
+//! (Newell) plane, so concave n-gons keep their area; a degenerate or self-intersecting polygon
+//! falls back to clipping whatever corner keeps the walk going, and a huge concave face stops
+//! searching for ears after a fixed amount of work (so hostile input cannot stall the import). Missing normals are computed per object point
 //! with [`vertex_normals`] (smooth, area weighted) so UV seams don't split them.
 
 use springbake_core::display::{
