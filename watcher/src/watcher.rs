@@ -11,7 +11,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::thread::{self, Scope, ScopedJoinHandle};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 /// How often the loop looks at the stop token while nothing else happens.
 const STOP_POLL: Duration = Duration::from_millis(50);
@@ -22,8 +22,10 @@ pub enum WatchBackend {
     /// The OS's notification API (inotify, FSEvents, ReadDirectoryChangesW, kqueue).
     #[default]
     Native,
-    /// Scan the watched folders every `interval`, comparing contents: for network shares and
-    /// containers where native notifications do not arrive.
+    /// Scan the watched folders every `interval`: for network shares and containers where
+    /// native notifications do not arrive. Each scan compares modification times (whole
+    /// seconds) and content hashes of every file in the watched folders, so prefer an interval
+    /// around a second when large files (e.g. the outputs) share those folders.
     Poll { interval: Duration },
 }
 
@@ -100,6 +102,8 @@ struct Done<J> {
     /// `None` when `watched_paths` panicked: keep the previous set.
     paths: Option<Vec<PathBuf>>,
     duration: Duration,
+    /// Wall-clock start of the run, to catch sources that changed before they were watched.
+    started_at: SystemTime,
 }
 
 /// Messages into the loop: file events and "the worker is done".
@@ -294,6 +298,7 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
             .spawn_scoped(self.scope, move || {
                 let _notify = NotifyOnDrop(done_tx);
                 let started = Instant::now();
+                let started_at = SystemTime::now();
                 let result = catch_unwind(AssertUnwindSafe(|| job.run(&worker_cancel)))
                     .unwrap_or_else(|payload| {
                         Err(JobError::Failed(format!(
@@ -308,6 +313,7 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
                     result,
                     paths,
                     duration,
+                    started_at,
                 }
             })
             .map_err(WatchError::Thread)?;
@@ -342,7 +348,22 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
             }
         };
         self.job = Some(done.job);
-        self.update_watch_set(done.paths, backend, on_event);
+        let added = self.update_watch_set(done.paths, backend, on_event);
+        // A newly named source was not watched while this run read it: a change made after the
+        // read would be lost. Anything modified since the run started gets a re-run (at worst
+        // one extra run when the change came before the read).
+        let missed: Vec<PathBuf> = added
+            .into_iter()
+            .filter(|path| {
+                std::fs::metadata(path)
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|modified| modified >= done.started_at)
+            })
+            .collect();
+        if !missed.is_empty() {
+            self.pending.extend(missed);
+            self.deadline = Some(Instant::now() + self.options.debounce);
+        }
         on_event(&match done.result {
             Ok(summary) => WatchEvent::Finished {
                 run,
@@ -361,19 +382,22 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
         });
     }
 
+    /// Installs a new set of watched paths, reports it, and returns the newly added ones.
     fn update_watch_set(
         &mut self,
         paths: Option<Vec<PathBuf>>,
         backend: &mut dyn notify::Watcher,
         on_event: &mut dyn FnMut(&WatchEvent),
-    ) {
+    ) -> Vec<PathBuf> {
         let changed = match paths {
             Some(paths) => self.set.set_paths(paths),
             None => None,
         };
         let first = self.runs == 0;
         let warnings = self.set.sync(backend);
+        let mut newly_added = Vec::new();
         if let Some((added, removed)) = changed {
+            newly_added.clone_from(&added);
             on_event(&WatchEvent::WatchSetChanged {
                 paths: self.set.paths().to_vec(),
                 added,
@@ -389,6 +413,7 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
         for message in warnings {
             on_event(&WatchEvent::Warning { message });
         }
+        newly_added
     }
 }
 

@@ -513,6 +513,36 @@ fn a_source_added_by_the_scene_gets_watched() {
 }
 
 #[test]
+fn a_source_changed_before_it_was_watched_is_not_missed() {
+    // Runs take ~0.6 s; the new source changes after the run read it but before the run ends
+    // and its watch exists.
+    let h = Harness::start(Setup {
+        files: &[("scene.txt", "a.txt\n"), ("a.txt", "A1"), ("c.txt", "C1")],
+        scene: Some("scene.txt"),
+        frames: 12,
+        frame_sleep: Duration::from_millis(50),
+        ..Setup::default()
+    });
+    h.wait_output("A1", 1);
+    fs::write(h.path("scene.txt"), "a.txt\nc.txt\n").unwrap();
+    h.wait_until("run 2 to start", |h| h.started() == 2);
+    thread::sleep(Duration::from_millis(150));
+    fs::write(h.path("c.txt"), "C2").unwrap();
+    h.wait_output("A1C2", 3);
+    h.settle();
+    assert_eq!(h.started(), 3, "{}", h.log());
+    let events = h.stop();
+    let changed: Vec<&WatchEvent> = events
+        .iter()
+        .filter(|e| matches!(e, WatchEvent::Changed { .. }))
+        .collect();
+    assert!(
+        matches!(changed[..], [_, WatchEvent::Changed { paths }] if paths.len() == 1 && paths[0].ends_with("c.txt")),
+        "{changed:?}"
+    );
+}
+
+#[test]
 fn a_source_in_a_folder_created_later_is_picked_up() {
     let h = Harness::start(Setup {
         files: &[("scene.txt", "a.txt\nsub/deeper/d.txt\n"), ("a.txt", "A1")],
