@@ -78,6 +78,9 @@ impl WatchJob for ConcatJob {
             let text = fs::read_to_string(source).map_err(|e| {
                 JobError::failed(format!("{}: cannot read source: {e}", source.display()))
             })?;
+            if text.contains("PANIC") {
+                panic!("fake job panics on {}", source.display());
+            }
             if text.contains("BROKEN") {
                 return Err(JobError::failed(format!(
                     "{}: line 1: BROKEN marker",
@@ -407,6 +410,32 @@ fn a_broken_source_fails_once_keeps_the_output_and_recovers() {
         .collect();
     names.sort();
     assert_eq!(names, ["a.txt", "b.txt", "out.txt"]);
+    h.stop();
+}
+
+#[test]
+fn a_panicking_job_is_a_failed_run_and_the_loop_goes_on() {
+    let h = Harness::start(Setup::default());
+    h.wait_output("A1B1", 1);
+    fs::write(h.path("a.txt"), "PANIC").unwrap();
+    h.wait_until("a failed run", |h| h.failed() == 1);
+    let error = h
+        .events()
+        .into_iter()
+        .find_map(|e| match e {
+            WatchEvent::Failed { error, .. } => Some(error),
+            _ => None,
+        })
+        .unwrap();
+    assert!(
+        error.starts_with("the job panicked: fake job panics on "),
+        "{error}"
+    );
+    assert_eq!(fs::read_to_string(&h.output).unwrap(), "A1B1");
+    fs::write(h.path("a.txt"), "A5").unwrap();
+    h.wait_output("A5B1", 2);
+    h.settle();
+    assert_eq!(h.started(), 3, "{}", h.log());
     h.stop();
 }
 
