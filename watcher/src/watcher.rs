@@ -348,22 +348,6 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
             }
         };
         self.job = Some(done.job);
-        let added = self.update_watch_set(done.paths, backend, on_event);
-        // A newly named source was not watched while this run read it: a change made after the
-        // read would be lost. Anything modified since the run started gets a re-run (at worst
-        // one extra run when the change came before the read).
-        let missed: Vec<PathBuf> = added
-            .into_iter()
-            .filter(|path| {
-                std::fs::metadata(path)
-                    .and_then(|m| m.modified())
-                    .is_ok_and(|modified| modified >= done.started_at)
-            })
-            .collect();
-        if !missed.is_empty() {
-            self.pending.extend(missed);
-            self.deadline = Some(Instant::now() + self.options.debounce);
-        }
         on_event(&match done.result {
             Ok(summary) => WatchEvent::Finished {
                 run,
@@ -380,6 +364,22 @@ impl<'scope, 'env, J: WatchJob + 'scope> Loop<'scope, 'env, J> {
                 duration: done.duration,
             },
         });
+        let added = self.update_watch_set(done.paths, backend, on_event);
+        // A newly named source was not watched while this run read it: a change made after the
+        // read would be lost. Anything modified since the run started gets a re-run (at worst
+        // one extra run when the change came before the read).
+        let missed: Vec<PathBuf> = added
+            .into_iter()
+            .filter(|path| {
+                std::fs::metadata(path)
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|modified| modified >= done.started_at)
+            })
+            .collect();
+        if !missed.is_empty() {
+            self.pending.extend(missed);
+            self.deadline = Some(Instant::now() + self.options.debounce);
+        }
     }
 
     /// Installs a new set of watched paths, reports it, and returns the newly added ones.
