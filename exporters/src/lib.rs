@@ -2,6 +2,7 @@
 
 use springbake_core::plugin::{Plugin, Registry};
 
+pub mod gltf;
 pub mod pointcache;
 
 /// Registers every built-in exporter on a host's [`Registry`].
@@ -11,6 +12,7 @@ pub struct BuiltinExporters;
 impl Plugin for BuiltinExporters {
     fn build(&self, registry: &mut Registry) {
         registry
+            .register_exporter(gltf::GltfExporter)
             .register_exporter(pointcache::Pc2Exporter)
             .register_exporter(pointcache::MddExporter);
     }

@@ -1,5 +1,7 @@
 //! glTF importer: the corpus sweep plus in-memory files for each feature the importer claims.
 
+#![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
+
 use base64::Engine as _;
 use serde_json::{json, Value};
 use springbake_core::plugin::{ImportSettings, Importer, IoErrorKind};
@@ -460,7 +462,7 @@ fn glb_written_by_hand_imports() {
     }))
     .unwrap();
     let mut json = json;
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin = f32s(&SQUARE[..9]);
