@@ -711,3 +711,79 @@ fn blender_plays_morph_and_skin_caches() {
         }
     }
 }
+
+#[test]
+fn textures_referenced_by_uri_are_embedded() {
+    use base64::Engine as _;
+    let dir = tempfile::tempdir().unwrap();
+    let png = base64::engine::general_purpose::STANDARD
+        .decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
+        .unwrap();
+    std::fs::create_dir(dir.path().join("tex")).unwrap();
+    std::fs::write(dir.path().join("tex/checker.png"), &png).unwrap();
+    let mut bin: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .chain(&[0f32, 0., 1., 0., 0., 1.])
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    bin.resize(60, 0);
+    std::fs::write(dir.path().join("tri.bin"), &bin).unwrap();
+    let src = dir.path().join("textured.gltf");
+    std::fs::write(
+        &src,
+        serde_json::to_vec(&json!({
+            "asset": {"version": "2.0"},
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0, "name": "Tri"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}]}],
+            "materials": [{"name": "Checker", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0, "sampler": 0}],
+            "samplers": [{}],
+            "images": [{"uri": "tex/checker.png"}],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]},
+                {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}
+            ],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24}],
+            "buffers": [{"byteLength": 60, "uri": "tri.bin"}],
+        }))
+        .unwrap(),
+    )
+    .unwrap();
+    let scene = import(&src);
+    let frames = (0..FRAMES)
+        .map(|f| {
+            scene.meshes[0].primitives[0]
+                .positions
+                .iter()
+                .map(|p| [p[0], p[1], p[2] + f as f32 * 0.01])
+                .collect()
+        })
+        .collect();
+    let baked = BakedScene {
+        fps: FPS,
+        frame_count: FRAMES,
+        meshes: vec![BakedMesh {
+            mesh_index: 0,
+            frames,
+            lattice: None,
+        }],
+    };
+    let out = tempfile::tempdir().unwrap(); // elsewhere: the output must not need tex/
+    let files = export_to(out.path(), "t.glb", &scene, &baked, CacheKind::Morph);
+    springbake_testkit::assert_gltf_valid(&files[0].path);
+    let doc = load(&files[0].path);
+    let image = &doc.array("images")[0];
+    assert!(image.get("uri").is_none(), "{image}");
+    assert_eq!(image["mimeType"], "image/png");
+    let view = &doc.array("bufferViews")[get_usize(image, "bufferView").unwrap()];
+    let start = get_usize(view, "byteOffset").unwrap();
+    assert_eq!(&doc.buffers[0][start..start + png.len()], &png[..]);
+    assert_eq!(doc.array("materials")[0]["name"], "Checker");
+    let again = import(&files[0].path);
+    assert_eq!(
+        again.meshes[0].primitives[0].uvs,
+        scene.meshes[0].primitives[0].uvs
+    );
+    assert!(max_error(&doc, &scene, &baked) < 1e-6);
+}
