@@ -15,13 +15,21 @@
 //! on the thread count.
 //!
 //! Beyond the regime where the printed model works (physics §7b) one explicit step can carry a
-//! spring past zero length even under the energy bound; [`DispersionMode::Bounded`] adds the
-//! per-step bound `θ' = min(θ, ½ l / ΔT)`: no spring may close by more than half its length in
-//! one step.
+//! spring past zero length even under the energy bound, and in 3-D a cell flattens and flips
+//! long before any spring reaches zero length. [`DispersionMode::Bounded`] (the production
+//! solver) makes two changes: the energy bound is taken against reaching
+//! `l_min = MIN_LENGTH_FRACTION · L` instead of 0, `θ = sqrt((k/m)((L − l_min)² − (l − L)²))`
+//! (eq 4 with `½k(L − l_min)²` on the right; `l_min = 0` gives eq 5), so a spring at 0.6 of its
+//! length (or 1.4 L) moves rigidly ("fusion"); and the per-step bound `θ' = min(θ, ½ l / ΔT)`,
+//! so no spring closes by more than half its length in one step.
 
 use super::{NodeState, SpringSet, PAR_CHUNK};
 use nalgebra::Vector3;
 use rayon::prelude::*;
+
+/// In [`DispersionMode::Bounded`], the shortest a spring may be driven by inertia, as a
+/// fraction of its natural length (the printed model allows 0).
+pub const MIN_LENGTH_FRACTION: f64 = 0.6;
 
 /// Which velocity-dispersion rule the solver applies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -118,14 +126,27 @@ pub fn speed_bound(
     dt: f64,
 ) -> f64 {
     let m = 2.0 * mass_a * mass_b / (mass_a + mass_b);
-    let theta = if length >= 2.0 * rest_length {
-        0.0
-    } else {
-        ((k / m) * length * (2.0 * rest_length - length)).sqrt()
-    };
     match mode {
-        DispersionMode::Bounded => theta.min(0.5 * length / dt),
-        _ => theta,
+        DispersionMode::Bounded => {
+            // Energy bound against reaching MIN_LENGTH_FRACTION·L instead of 0, then the
+            // per-step bound.
+            let reach = (1.0 - MIN_LENGTH_FRACTION) * rest_length;
+            let strain = length - rest_length;
+            let room = reach * reach - strain * strain;
+            let theta = if room > 0.0 {
+                ((k / m) * room).sqrt()
+            } else {
+                0.0
+            };
+            theta.min(0.5 * length / dt)
+        }
+        _ => {
+            if length >= 2.0 * rest_length {
+                0.0
+            } else {
+                ((k / m) * length * (2.0 * rest_length - length)).sqrt()
+            }
+        }
     }
 }
 
@@ -260,7 +281,14 @@ mod tests {
             ),
             0.0
         );
-        // Per-step bound: ½ l/ΔT = 0.5·0.1/0.01 = 5 m/s < 20.
+        // Bounded at rest length: sqrt(k/m)·(L − 0.6 L) = 200·0.04 = 8 m/s; per-step bound:
+        // ½ l/ΔT = 0.5·0.1/0.01 = 5 m/s wins at ΔT = 10 ms.
+        let fused = speed_bound(DispersionMode::Bounded, 2000.0, 0.05, 0.05, 0.1, 0.1, 1e-4);
+        assert!((fused - 8.0).abs() < 1e-12);
+        assert_eq!(
+            speed_bound(DispersionMode::Bounded, 2000.0, 0.05, 0.05, 0.06, 0.1, 1e-4),
+            0.0
+        );
         let bounded = speed_bound(DispersionMode::Bounded, 2000.0, 0.05, 0.05, 0.1, 0.1, 0.01);
         assert!((bounded - 5.0).abs() < 1e-12);
     }
