@@ -115,6 +115,24 @@ struct Prepared {
     shortest_spring: f64,
 }
 
+impl Prepared {
+    fn bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        b(&self.adjacency.offsets)
+            + b(&self.adjacency.links)
+            + b(&self.colouring.order)
+            + b(&self.colouring.offsets)
+            + b(&self.spring_force)
+            + b(&self.force)
+            + b(&self.depth)
+            + b(&self.capsule_force)
+            + b(&self.dispersion_scratch)
+            + b(&self.capsules)
+    }
+}
+
 /// Running totals over the substeps of one frame.
 #[derive(Debug, Clone, Copy, Default)]
 struct FrameAccumulator {
@@ -566,6 +584,25 @@ impl World {
     pub fn total_energy(&self) -> f64 {
         let d = self.diagnostics(0);
         d.kinetic_energy + d.elastic_energy + d.gravity_energy
+    }
+
+    /// Bytes held by the world's arrays (node state, springs, cells, and the prepared
+    /// adjacency, colouring and scratch buffers once the first step has run), counted from the
+    /// vectors' capacities. Heap bookkeeping and the lattice the world was built from are not
+    /// included.
+    pub fn solver_bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        let n = &self.nodes;
+        let s = &self.springs;
+        let mut total = b(&n.position) + b(&n.velocity) + b(&n.mass) + b(&n.inv_mass);
+        total += b(&s.a) + b(&s.b) + b(&s.rest_length) + b(&s.stiffness) + b(&s.damping);
+        total += self.bodies.iter().map(|body| b(&body.cells)).sum::<usize>();
+        if let Some(p) = &self.prepared {
+            total += p.bytes();
+        }
+        total
     }
 
     /// Total linear momentum.
