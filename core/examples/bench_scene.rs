@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p springbake-core --example bench_scene [-- --json] [-- --quick]`
 //! `--json` prints one JSON line last (for scripts/bench.sh); `--quick` skips 64³ and the
-//! frame-time sweep.
+//! frame-time sweep; `--trace` runs only the standard scene and prints each frame's diagnostics.
 
 use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
@@ -109,7 +109,7 @@ struct Standard {
 }
 
 /// The standard scene: 15 cells per side (16³ nodes), bottom at 1 m, 100 frames at 24 fps.
-fn standard(threads: usize) -> Standard {
+fn standard(threads: usize, trace: bool) -> Standard {
     pool(threads).install(|| {
         let mut w = world(15, 1.0);
         let layer = w.settings.layer.thickness_m;
@@ -122,6 +122,19 @@ fn standard(threads: usize) -> Standard {
             inverted_max = inverted_max.max(d.inverted_cells);
             penetration_max = penetration_max.max(d.max_penetration);
             substeps += d.substeps as u64;
+            if trace {
+                println!(
+                    "    frame {f:>3}: {} substeps, dispersion {} corrections / {} sweeps / {} cap hits, \
+                     inverted {}, penetration {:.4} m, max speed {:.3} m/s",
+                    d.substeps,
+                    d.dispersion_corrections,
+                    d.dispersion_iterations,
+                    d.dispersion_cap_hits,
+                    d.inverted_cells,
+                    d.max_penetration,
+                    d.max_speed
+                );
+            }
         }
         Standard {
             wall_s: t0.elapsed().as_secs_f64(),
@@ -152,6 +165,11 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let json = args.iter().any(|a| a == "--json");
     let quick = args.iter().any(|a| a == "--quick");
+    let trace = args.iter().any(|a| a == "--trace");
+    if trace {
+        standard(1, true);
+        return;
+    }
     let sizes: &[u32] = if quick { &[15, 31] } else { &[15, 31, 63] };
     println!("load average before: {}", load_average());
 
@@ -210,7 +228,7 @@ fn main() {
     let mut std_rows = Vec::new();
     let mut ok = true;
     for threads in [1, 2] {
-        let s = standard(threads);
+        let s = standard(threads, trace && threads == 1);
         let pass = s.inverted_max == 0 && s.penetration_max < s.layer;
         ok &= pass;
         println!(

@@ -1,7 +1,8 @@
 //! Internal forces (Miyazaki eq 1): springs `k (1 − L/|r|) r` with dampers on the component of
 //! the relative velocity *along* the spring (physics §2 allows it; it leaves rigid rotation
 //! undamped), and gravity. Two passes: per-spring forces in parallel, then a per-node gather
-//! through a CSR adjacency in fixed order, so there are no racy scatters.
+//! through a CSR adjacency in fixed order (done inside the world's fused node pass, which also
+//! adds gravity and contact and updates the velocity), so there are no racy scatters.
 
 use super::{NodeState, SpringSet, PAR_CHUNK};
 use nalgebra::Vector3;
@@ -40,54 +41,55 @@ impl Adjacency {
     }
 }
 
-/// Force on each spring's `a` end (the `b` end gets the opposite).
+/// Force on each spring's `a` end (the `b` end gets the opposite). Fixed chunks of
+/// [`PAR_CHUNK`] springs, one task each; each slot is written by its spring alone.
 pub(crate) fn spring_forces(nodes: &NodeState, springs: &SpringSet, out: &mut [Vector3<f64>]) {
-    out.par_iter_mut()
-        .with_min_len(PAR_CHUNK)
+    let (pos, vel) = (&nodes.position[..], &nodes.velocity[..]);
+    out.par_chunks_mut(PAR_CHUNK)
         .enumerate()
-        .for_each(|(s, f)| {
-            let a = springs.a[s] as usize;
-            let b = springs.b[s] as usize;
-            let r = nodes.position[a] - nodes.position[b];
-            let len = r.norm();
-            if len <= f64::MIN_POSITIVE {
-                *f = Vector3::zeros();
-                return;
+        .for_each(|(chunk, out)| {
+            let first = chunk * PAR_CHUNK;
+            let range = first..first + out.len();
+            let (sa, sb) = (&springs.a[range.clone()], &springs.b[range.clone()]);
+            let rest = &springs.rest_length[range.clone()];
+            let (k, d) = (&springs.stiffness[range.clone()], &springs.damping[range]);
+            for (j, f) in out.iter_mut().enumerate() {
+                let (a, b) = (sa[j] as usize, sb[j] as usize);
+                let r = pos[a] - pos[b];
+                let len = r.norm();
+                if len <= f64::MIN_POSITIVE {
+                    *f = Vector3::zeros();
+                    continue;
+                }
+                let u = r / len;
+                let stretch = len - rest[j];
+                let closing = (vel[a] - vel[b]).dot(&u);
+                *f = -(k[j] * stretch + d[j] * closing) * u;
             }
-            let u = r / len;
-            let stretch = len - springs.rest_length[s];
-            let closing = (nodes.velocity[a] - nodes.velocity[b]).dot(&u);
-            *f = -(springs.stiffness[s] * stretch + springs.damping[s] * closing) * u;
         });
 }
 
-/// Total force per node: gravity plus the gathered spring forces (contacts are added later).
-pub(crate) fn gather_forces(
-    nodes: &NodeState,
+/// Sum of the spring forces on node `i` (through the CSR adjacency, in fixed order).
+#[inline]
+pub(crate) fn gathered_spring_force(
     adjacency: &Adjacency,
     spring_force: &[Vector3<f64>],
-    gravity: Vector3<f64>,
-    out: &mut [Vector3<f64>],
-) {
-    out.par_iter_mut()
-        .with_min_len(PAR_CHUNK)
-        .enumerate()
-        .for_each(|(i, f)| {
-            let mut acc = gravity * nodes.mass[i];
-            let (lo, hi) = (
-                adjacency.offsets[i] as usize,
-                adjacency.offsets[i + 1] as usize,
-            );
-            for &link in &adjacency.links[lo..hi] {
-                let sf = spring_force[(link >> 1) as usize];
-                if link & 1 == 0 {
-                    acc += sf;
-                } else {
-                    acc -= sf;
-                }
-            }
-            *f = acc;
-        });
+    i: usize,
+) -> Vector3<f64> {
+    let (lo, hi) = (
+        adjacency.offsets[i] as usize,
+        adjacency.offsets[i + 1] as usize,
+    );
+    let mut acc = Vector3::zeros();
+    for &link in &adjacency.links[lo..hi] {
+        let sf = spring_force[(link >> 1) as usize];
+        if link & 1 == 0 {
+            acc += sf;
+        } else {
+            acc -= sf;
+        }
+    }
+    acc
 }
 
 /// Elastic energy ½ k (l − L)² of spring `s`.

@@ -59,7 +59,7 @@ impl SpringColouring {
         let mut used: Vec<Vec<u64>> = vec![vec![0]; nodes];
         let mut colour_of = vec![0u32; springs.len()];
         let mut colours = 0u32;
-        for s in 0..springs.len() {
+        for (s, colour) in colour_of.iter_mut().enumerate() {
             let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
             let mut c = 0u32;
             loop {
@@ -79,7 +79,7 @@ impl SpringColouring {
                 }
                 used[n][word] |= 1u64 << (c % 64);
             }
-            colour_of[s] = c;
+            *colour = c;
             colours = colours.max(c + 1);
         }
         let mut offsets = vec![0u32; colours as usize + 1];
@@ -191,7 +191,57 @@ fn correction(
     Some((dir * (share * wa), -dir * (share * wb)))
 }
 
+/// A cheap, conservative test that spring `s` is within its bound: `true` only when the
+/// exact test in [`correction`] would find no violation. It avoids both square roots: with
+/// `l²` between `(0.9 L)²` and `(1.1 L)²` the bound is at least
+/// `sqrt(k/m · 0.15 L²)` and `0.45 L / ΔT` (Bounded) or `sqrt(k/m · 0.99 L²)` (as printed),
+/// and `k/m = k (1/m_a + 1/m_b) / 2` for the harmonic mean mass. Springs it cannot clear go
+/// to the exact test.
+#[inline]
+fn surely_within_bound(
+    mode: DispersionMode,
+    nodes: &NodeState,
+    springs: &SpringSet,
+    s: usize,
+    dt: f64,
+) -> bool {
+    let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
+    let (wa, wb) = (nodes.inv_mass[a], nodes.inv_mass[b]);
+    if wa == 0.0 || wb == 0.0 {
+        return false;
+    }
+    let rest = springs.rest_length[s];
+    let rest_sq = rest * rest;
+    let len_sq = (nodes.position[a] - nodes.position[b]).norm_squared();
+    if !(len_sq >= 0.81 * rest_sq && len_sq <= 1.21 * rest_sq) {
+        return false;
+    }
+    let k_over_m = 0.5 * springs.stiffness[s] * (wa + wb);
+    let floor_sq = match mode {
+        DispersionMode::Bounded => (k_over_m * 0.15 * rest_sq).min(0.2025 * rest_sq / (dt * dt)),
+        _ => k_over_m * 0.99 * rest_sq,
+    };
+    (nodes.velocity[b] - nodes.velocity[a]).norm_squared() <= floor_sq
+}
+
+/// Whether any spring is over its bound: one parallel pass in fixed chunks (the answer does
+/// not depend on the thread count), the cheap test first.
+fn any_violation(mode: DispersionMode, nodes: &NodeState, springs: &SpringSet, dt: f64) -> bool {
+    let n = springs.len();
+    (0..n.div_ceil(PAR_CHUNK)).into_par_iter().any(|c| {
+        (c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n)).any(|s| {
+            !surely_within_bound(mode, nodes, springs, s, dt)
+                && correction(mode, nodes, springs, s, dt).is_some()
+        })
+    })
+}
+
 /// Apply the dispersion procedure to `nodes.velocity` (positions are the current ones).
+///
+/// One parallel check pass first: when no spring is over its bound (the common case) the
+/// sweeps are skipped, which gives exactly what a sweep finding nothing would. `scratch` holds
+/// one colour's corrections between the parallel evaluation and the serial application; it
+/// grows to the largest colour once and is reused (no allocation in later steps).
 pub fn disperse(
     mode: DispersionMode,
     nodes: &mut NodeState,
@@ -202,25 +252,41 @@ pub fn disperse(
     scratch: &mut Vec<(u32, Vector3<f64>, Vector3<f64>)>,
 ) -> DispersionStats {
     let mut stats = DispersionStats::default();
-    if mode == DispersionMode::Off {
+    if mode == DispersionMode::Off || !any_violation(mode, nodes, springs, dt) {
         return stats;
     }
+    const NONE: u32 = u32::MAX;
     loop {
         let mut violated = 0u64;
         for c in 0..colouring.colour_count() {
             let group =
                 &colouring.order[colouring.offsets[c] as usize..colouring.offsets[c + 1] as usize];
-            let state: &NodeState = nodes;
-            scratch.clear();
-            scratch.par_extend(group.par_iter().with_min_len(PAR_CHUNK).filter_map(|&s| {
-                correction(mode, state, springs, s as usize, dt).map(|(da, db)| (s, da, db))
-            }));
-            // No two springs of one colour share a node: applying in any order is the same.
-            for &(s, da, db) in scratch.iter() {
-                nodes.velocity[springs.a[s as usize] as usize] += da;
-                nodes.velocity[springs.b[s as usize] as usize] += db;
+            if scratch.len() < group.len() {
+                scratch.resize(group.len(), (NONE, Vector3::zeros(), Vector3::zeros()));
             }
-            violated += scratch.len() as u64;
+            let state: &NodeState = nodes;
+            scratch[..group.len()]
+                .par_iter_mut()
+                .zip(group.par_iter())
+                .with_min_len(PAR_CHUNK)
+                .for_each(|(slot, &s)| {
+                    slot.0 = match correction(mode, state, springs, s as usize, dt) {
+                        Some((da, db)) => {
+                            slot.1 = da;
+                            slot.2 = db;
+                            s
+                        }
+                        None => NONE,
+                    };
+                });
+            // No two springs of one colour share a node: applying in any order is the same.
+            for &(s, da, db) in scratch[..group.len()].iter() {
+                if s != NONE {
+                    nodes.velocity[springs.a[s as usize] as usize] += da;
+                    nodes.velocity[springs.b[s as usize] as usize] += db;
+                    violated += 1;
+                }
+            }
         }
         if violated == 0 {
             break;
@@ -229,11 +295,7 @@ pub fn disperse(
         stats.iterations += 1;
         if stats.iterations >= max_iterations {
             // One more check tells whether springs are still over the bound.
-            let state: &NodeState = nodes;
-            stats.hit_cap = (0..springs.len())
-                .into_par_iter()
-                .with_min_len(PAR_CHUNK)
-                .any(|s| correction(mode, state, springs, s, dt).is_some());
+            stats.hit_cap = any_violation(mode, nodes, springs, dt);
             break;
         }
     }
@@ -334,6 +396,56 @@ mod tests {
         );
         assert_eq!(stats, DispersionStats::default());
         assert_eq!(nodes, before);
+    }
+
+    #[test]
+    fn cheap_prefilter_never_clears_a_violating_spring() {
+        // A deterministic sweep over lengths, relative speeds, mass ratios and steps around
+        // the prefilter's thresholds: whenever it clears a spring, the exact test agrees.
+        let (mut cleared, mut violating) = (0, 0);
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for i in 0..20_000 {
+            let mode = if i % 2 == 0 {
+                DispersionMode::Bounded
+            } else {
+                DispersionMode::AsPrinted
+            };
+            let (m1, m2) = (0.01 + rnd(), 0.01 + rnd());
+            let len = 0.1 * (0.85 + 0.3 * rnd());
+            let dt = [1e-4, 1e-3, 1e-2][i % 3];
+            let mut nodes = NodeState {
+                position: vec![Vector3::zeros(), Vector3::new(len, 0.0, 0.0)],
+                velocity: vec![Vector3::zeros(); 2],
+                mass: vec![m1, m2],
+                inv_mass: vec![1.0 / m1, 1.0 / m2],
+            };
+            let mut springs = SpringSet::default();
+            springs.push(0, 1, 0.1, 2000.0, 0.0);
+            let theta = speed_bound(mode, 2000.0, m1, m2, len, 0.1, dt);
+            let speed = theta * (0.5 + rnd());
+            let dir = Vector3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            nodes.velocity[1] = dir * speed;
+            let exact = correction(mode, &nodes, &springs, 0, dt);
+            if surely_within_bound(mode, &nodes, &springs, 0, dt) {
+                cleared += 1;
+                assert!(exact.is_none(), "case {i}: cleared a violating spring");
+            }
+            violating += exact.is_some() as u32;
+        }
+        assert!(
+            cleared > 2_000,
+            "the prefilter clears too little: {cleared}"
+        );
+        assert!(
+            violating > 2_000,
+            "the sweep must include violations: {violating}"
+        );
     }
 
     #[test]

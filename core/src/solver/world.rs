@@ -4,12 +4,12 @@
 
 use super::contact::{node_contacts, ContactLayer, Plane};
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
-use super::forces::{gather_forces, spring_energy, spring_forces, Adjacency};
+use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency};
 use super::manipulator::{Capsule, ManipulatorTrack};
 use super::miyazaki1996_velocity_dispersion::{disperse, DispersionMode, SpringColouring};
 use super::substeps::{accuracy_step, SubstepChoice};
 use super::{deterministic_sum, parallel_max, NodeState, SpringSet, PAR_CHUNK};
-use crate::lattice::{cell_is_inverted, Lattice};
+use crate::lattice::Lattice;
 use crate::material::Material;
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -106,9 +106,8 @@ struct Prepared {
     adjacency: Adjacency,
     colouring: SpringColouring,
     spring_force: Vec<Vector3<f64>>,
-    force: Vec<Vector3<f64>>,
-    depth: Vec<f64>,
-    capsule_force: Vec<Vector3<f64>>,
+    /// Per fixed node chunk: deepest penetration and the sum of the manipulators' forces.
+    chunk_contact: Vec<(f64, Vector3<f64>)>,
     dispersion_scratch: Vec<(u32, Vector3<f64>, Vector3<f64>)>,
     capsules: Vec<Capsule>,
     static_step: SubstepChoice,
@@ -125,9 +124,7 @@ impl Prepared {
             + b(&self.colouring.order)
             + b(&self.colouring.offsets)
             + b(&self.spring_force)
-            + b(&self.force)
-            + b(&self.depth)
-            + b(&self.capsule_force)
+            + b(&self.chunk_contact)
             + b(&self.dispersion_scratch)
             + b(&self.capsules)
     }
@@ -261,11 +258,9 @@ impl World {
                 adjacency,
                 colouring,
                 spring_force: vec![Vector3::zeros(); self.springs.len()],
-                force: vec![Vector3::zeros(); n],
-                depth: vec![0.0; n],
-                capsule_force: vec![Vector3::zeros(); n],
+                chunk_contact: vec![(0.0, Vector3::zeros()); n.div_ceil(PAR_CHUNK)],
                 dispersion_scratch: Vec::new(),
-                capsules: Vec::new(),
+                capsules: Vec::with_capacity(self.manipulators.len() + self.live_capsules.len()),
                 static_step,
                 shortest_spring,
             });
@@ -310,9 +305,9 @@ impl World {
             .filter(|&m| m > 0.0)
             .fold(f64::INFINITY, f64::min);
         let mut omega_sq: f64 = 0.0;
-        for i in 0..nodes.len() {
-            if nodes.mass[i] > 0.0 {
-                omega_sq = omega_sq.max((2.0 * node_k[i] + layer_k) / nodes.mass[i]);
+        for (&m, &k) in nodes.mass.iter().zip(&node_k) {
+            if m > 0.0 {
+                omega_sq = omega_sq.max((2.0 * k + layer_k) / m);
             }
         }
         let mut best = SubstepChoice {
@@ -377,88 +372,85 @@ impl World {
         parallel_max(v.len(), |i| v[i].norm())
     }
 
-    /// Capsules of the scripted tracks at time `t` plus the live ones.
-    fn capsules_at(&self, t: f64) -> Vec<Capsule> {
-        self.manipulators
-            .iter()
-            .map(|m| m.capsule_at(t))
-            .chain(self.live_capsules.iter().copied())
-            .collect()
-    }
-
     /// One step of `dt` seconds.
     pub fn step(&mut self, dt: f64) -> StepStats {
         let mut acc = FrameAccumulator::default();
         self.step_accumulate(dt, &mut acc)
     }
 
+    /// One step: spring forces (per spring), then one fused node pass (gather, gravity,
+    /// contact, velocity update), velocity dispersion, position update. Nothing is allocated
+    /// once the prepared buffers exist; every parallel loop runs over fixed chunks, so the
+    /// result does not depend on the thread count.
     fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
-        let capsules = self.capsules_at(self.time);
         let gravity = self.settings.gravity;
         let layer = self.settings.layer;
         let dispersion = self.settings.dispersion;
         let max_iter = self.settings.max_dispersion_iterations;
-        let has_contact = !self.settings.planes.is_empty() || !capsules.is_empty();
+        let time = self.time;
         self.prepare();
         let World {
             nodes,
             springs,
             settings,
             prepared,
+            manipulators,
+            live_capsules,
             ..
         } = self;
         let p = prepared.as_mut().expect("prepared");
-        p.capsules = capsules;
+        // Capsules of the scripted tracks at this time plus the live ones (reused buffer).
+        p.capsules.clear();
+        p.capsules
+            .extend(manipulators.iter().map(|m| m.capsule_at(time)));
+        p.capsules.extend(live_capsules.iter().copied());
+        let has_contact = !settings.planes.is_empty() || !p.capsules.is_empty();
 
         spring_forces(nodes, springs, &mut p.spring_force);
-        gather_forces(nodes, &p.adjacency, &p.spring_force, gravity, &mut p.force);
 
-        if has_contact {
-            let planes = &settings.planes;
-            let caps = &p.capsules;
-            let state: &NodeState = nodes;
-            p.force
-                .par_iter_mut()
-                .zip(p.depth.par_iter_mut())
-                .zip(p.capsule_force.par_iter_mut())
-                .with_min_len(PAR_CHUNK)
+        // Fused node pass: gravity + gathered springs + contact, then v += F/m·ΔT (eq 2).
+        {
+            let planes = &settings.planes[..];
+            let caps = &p.capsules[..];
+            let adjacency = &p.adjacency;
+            let spring_force = &p.spring_force[..];
+            let (pos, mass, inv_mass) = (&nodes.position[..], &nodes.mass[..], &nodes.inv_mass[..]);
+            nodes
+                .velocity
+                .par_chunks_mut(PAR_CHUNK)
+                .zip(p.chunk_contact.par_iter_mut())
                 .enumerate()
-                .for_each(|(i, ((f, depth), cap_f))| {
-                    let (cf, d, from_caps) = node_contacts(
-                        &layer,
-                        planes,
-                        caps,
-                        state.position[i],
-                        state.velocity[i],
-                        state.mass[i],
-                        dt,
-                    );
-                    *f += cf;
-                    *depth = d;
-                    *cap_f = from_caps;
+                .for_each(|(chunk, (vel, out))| {
+                    let first = chunk * PAR_CHUNK;
+                    let mut deepest = 0.0f64;
+                    let mut from_caps = Vector3::zeros();
+                    for (j, v) in vel.iter_mut().enumerate() {
+                        let i = first + j;
+                        let mut f =
+                            gravity * mass[i] + gathered_spring_force(adjacency, spring_force, i);
+                        if has_contact {
+                            let (cf, d, fc) =
+                                node_contacts(&layer, planes, caps, pos[i], *v, mass[i], dt);
+                            f += cf;
+                            deepest = deepest.max(d);
+                            from_caps += fc;
+                        }
+                        *v += f * (inv_mass[i] * dt);
+                    }
+                    *out = (deepest, from_caps);
                 });
-            let depth = &p.depth;
-            acc.max_depth = acc.max_depth.max(parallel_max(depth.len(), |i| depth[i]));
+        }
+        if has_contact {
+            // Fixed chunk order: the same sums with any thread count.
+            let mut sum = Vector3::zeros();
+            for &(deepest, from_caps) in &p.chunk_contact {
+                acc.max_depth = acc.max_depth.max(deepest);
+                sum += from_caps;
+            }
             if !p.capsules.is_empty() {
-                let cf = &p.capsule_force;
-                let n = cf.len();
-                acc.reaction_sum -= Vector3::new(
-                    deterministic_sum(n, |i| cf[i].x),
-                    deterministic_sum(n, |i| cf[i].y),
-                    deterministic_sum(n, |i| cf[i].z),
-                );
+                acc.reaction_sum -= sum;
             }
         }
-
-        // Velocity update (symplectic Euler, eq 2).
-        let force = &p.force;
-        let inv_mass = &nodes.inv_mass;
-        nodes
-            .velocity
-            .par_iter_mut()
-            .with_min_len(PAR_CHUNK)
-            .enumerate()
-            .for_each(|(i, v)| *v += force[i] * (inv_mass[i] * dt));
 
         // Velocity dispersion (§3.4 step 2–3).
         let d = disperse(
@@ -472,13 +464,17 @@ impl World {
         );
 
         // Position update with the new velocity (eq 3, symplectic).
-        let velocity = &nodes.velocity;
+        let velocity = &nodes.velocity[..];
         nodes
             .position
-            .par_iter_mut()
-            .with_min_len(PAR_CHUNK)
+            .par_chunks_mut(PAR_CHUNK)
             .enumerate()
-            .for_each(|(i, x)| *x += velocity[i] * dt);
+            .for_each(|(chunk, xs)| {
+                let v = &velocity[chunk * PAR_CHUNK..chunk * PAR_CHUNK + xs.len()];
+                for (x, v) in xs.iter_mut().zip(v) {
+                    *x += v * dt;
+                }
+            });
 
         self.time += dt;
         acc.corrections += d.corrections;
@@ -541,21 +537,17 @@ impl World {
         }
     }
 
-    /// Cells of all bodies with a non-positive corner tetrahedron.
+    /// Cells of all bodies with a non-positive corner tetrahedron (the test of
+    /// [`crate::lattice::cell_is_inverted`], on the node positions in place).
     pub fn inverted_cells(&self) -> usize {
-        let points: Vec<Point3<f64>> = self
-            .nodes
-            .position
-            .iter()
-            .map(|&p| Point3::from(p))
-            .collect();
+        let pos = &self.nodes.position[..];
         self.bodies
             .iter()
             .map(|b| {
                 b.cells
                     .par_iter()
                     .with_min_len(PAR_CHUNK)
-                    .filter(|c| cell_is_inverted(c, &points))
+                    .filter(|c| cell_inverted_at(c, pos))
                     .count()
             })
             .sum()
@@ -610,4 +602,20 @@ impl World {
         let n = &self.nodes;
         (0..n.len()).map(|i| n.velocity[i] * n.mass[i]).sum()
     }
+}
+
+/// [`crate::lattice::cell_is_inverted`] on `Vector3` positions (the same arithmetic, without building a
+/// `Vec<Point3>` of every node each frame).
+fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> bool {
+    let p = |c: usize| positions[nodes[c] as usize];
+    (0..8).any(|c| {
+        let ex = p(c ^ 1) - p(c);
+        let ey = p(c ^ 2) - p(c);
+        let ez = p(c ^ 4) - p(c);
+        // Mirrored corners flip the handedness of (ex, ey, ez); compensate with the parity.
+        let parity = ((c & 1) + ((c >> 1) & 1) + ((c >> 2) & 1)) % 2;
+        let vol = ex.dot(&ey.cross(&ez));
+        let signed = if parity == 0 { vol } else { -vol };
+        signed <= 0.0
+    })
 }
