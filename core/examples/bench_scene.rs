@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p springbake-core --example bench_scene [-- --json] [-- --quick]`
 //! `--json` prints one JSON line last (for scripts/bench.sh); `--quick` skips 64³ and the
-//! frame-time sweep; `--trace` runs only the standard scene and prints each frame's diagnostics.
+//! frame-time sweep; `--standard` runs only the standard scene; `--trace` runs only the standard scene and prints each frame's diagnostics.
 
 use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
@@ -166,6 +166,7 @@ fn main() {
     let json = args.iter().any(|a| a == "--json");
     let quick = args.iter().any(|a| a == "--quick");
     let trace = args.iter().any(|a| a == "--trace");
+    let only_standard = args.iter().any(|a| a == "--standard");
     if trace {
         standard(1, true);
         return;
@@ -175,6 +176,9 @@ fn main() {
 
     // Memory first, in a fresh process state: VmHWM before and after building a 64³ world
     // and stepping it, divided by its nodes (includes the lattice fit's transient data).
+    if only_standard {
+        return standard_report(json);
+    }
     let hwm0 = vm_hwm().unwrap_or(0);
     let (mem_nodes, arrays_bytes) = {
         let mut w = world(63, -0.001);
@@ -222,13 +226,30 @@ fn main() {
         }
     }
 
+    let (std_rows, ok) = standard_rows();
+    println!("load average after: {}", load_average());
+    if json {
+        println!(
+            "{{\"throughput\":[{}],\"standard\":[{}],\"bytes_per_node_arrays\":{arrays_per_node:.1},\"bytes_per_node_hwm\":{hwm_per_node:.1},\"ok\":{ok}}}",
+            rows.join(","),
+            std_rows.join(",")
+        );
+    }
+    if !ok {
+        std::process::exit(1);
+    }
+}
+
+/// Runs the standard scene at 1 and 2 threads, printing a line each; returns the JSON rows and
+/// whether the checks passed.
+fn standard_rows() -> (Vec<String>, bool) {
     println!(
         "\nStandard scene (1 m rubber cube, 16³ nodes, dropped from 1 m, 100 frames @ 24 fps):"
     );
     let mut std_rows = Vec::new();
     let mut ok = true;
     for threads in [1, 2] {
-        let s = standard(threads, trace && threads == 1);
+        let s = standard(threads, false);
         let pass = s.inverted_max == 0 && s.penetration_max < s.layer;
         ok &= pass;
         println!(
@@ -247,13 +268,16 @@ fn main() {
             s.wall_s, s.substeps, s.inverted_max, s.penetration_max, s.layer
         ));
     }
+    (std_rows, ok)
+}
+
+/// `--standard`: only the standard scene (what scripts/bench.sh compares with Blender).
+fn standard_report(json: bool) {
+    println!("load average before: {}", load_average());
+    let (rows, ok) = standard_rows();
     println!("load average after: {}", load_average());
     if json {
-        println!(
-            "{{\"throughput\":[{}],\"standard\":[{}],\"bytes_per_node_arrays\":{arrays_per_node:.1},\"bytes_per_node_hwm\":{hwm_per_node:.1},\"ok\":{ok}}}",
-            rows.join(","),
-            std_rows.join(",")
-        );
+        println!("{{\"standard\":[{}],\"ok\":{ok}}}", rows.join(","));
     }
     if !ok {
         std::process::exit(1);
