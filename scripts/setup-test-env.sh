@@ -23,6 +23,6 @@ if ! .venv/bin/python -c 'import bpy' 2>/dev/null; then
 fi
 if [ ! -f node_modules/gltf-validator/package.json ]; then
   echo "setup: installing gltf-validator into node_modules"
-  npm install --no-audit --no-fund --silent gltf-validator >/dev/null
+  npm ci --no-audit --no-fund --silent >/dev/null
 fi
 echo "setup: test clients ready (.venv, node_modules)"

@@ -1,1 +1,405 @@
-fn main() {}
+//! The `springbake` command line: bake, demo, inspect, plugins, watch (and view).
+//!
+//! Exit codes: 0 success, 2 usage or input errors (the user's file or arguments), 1 anything
+//! else. Errors are one readable message, never a panic.
+
+mod demo;
+
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use springbake_pipeline::watch::{BakeInput, BakeJob};
+use springbake_pipeline::{
+    bake, default_registry, BakeHooks, LoadedScene, MeshOverrides, PipelineError,
+};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "springbake",
+    version,
+    about = "Soft-body baking: import a mesh, simulate it as a mass-spring lattice, bake the wobble back.",
+    long_about = "springbake imports a mesh (glTF, OBJ, USD), fits a cubic mass-spring lattice around it, \
+simulates it (Miyazaki et al. 1996: springs in real material units, elastic-layer contact with the \
+floor, walls and a capsule manipulator, the velocity-dispersion fusion model) and bakes the motion \
+back: glTF morph targets (default), USD time samples, PC2/MDD point caches or a lattice-skin glTF.\n\n\
+Quick start:\n  springbake demo                      bake the built-in demo to out/demo.glb\n  \
+springbake bake suzanne.glb          drop a mesh on the floor, write suzanne.baked.glb\n  \
+springbake bake scene.toml           bake a scene file (see docs/scene.md)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake a scene file (.toml) or a bare mesh with the default scene (rubber, ~10 cells,
+    /// dropped onto a floor).
+    Bake {
+        /// A scene file (.toml) or a mesh (.glb, .gltf, .obj, .usda, .usdc, .usdz).
+        input: PathBuf,
+        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .pc2, .mdd).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Number of output frames (frame 1 is the initial state).
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Output frames per second.
+        #[arg(long)]
+        fps: Option<f64>,
+        /// Lattice cells along the longest side (bare meshes).
+        #[arg(long)]
+        cells: Option<u32>,
+        /// Material preset for bare meshes: jelly, soft_rubber, rubber, foam, wood, steel.
+        #[arg(long)]
+        material: Option<String>,
+        /// Write per-frame diagnostics (energies, inverted cells, penetration, substeps) as JSON.
+        #[arg(long, value_name = "FILE.json")]
+        report: Option<PathBuf>,
+    },
+    /// Bake the built-in demo (a soft ball dropped and hit by the manipulator); no files needed.
+    Demo {
+        /// Output file.
+        #[arg(short, long, default_value = "out/demo.glb")]
+        output: PathBuf,
+        /// Write the diagnostics report as JSON.
+        #[arg(long, value_name = "FILE.json")]
+        report: Option<PathBuf>,
+    },
+    /// Show a mesh file's meshes, vertex and triangle counts, bounds, and the lattice a fit would make.
+    Inspect {
+        file: PathBuf,
+        /// Lattice cells along the longest side for the fit preview.
+        #[arg(long, default_value_t = springbake_core::scene::DEFAULT_CELLS)]
+        cells: u32,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// List the registered importers and exporters.
+    Plugins,
+    /// Bake, then re-bake whenever the scene file or any source it names changes.
+    Watch {
+        /// A scene file (.toml) or a mesh.
+        input: PathBuf,
+        /// Output file for a bare mesh.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// One JSON object per event instead of a line for people.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// A failure and its exit code.
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+impl From<PipelineError> for Failure {
+    fn from(e: PipelineError) -> Self {
+        Failure {
+            code: if e.is_user_error() { 2 } else { 1 },
+            message: e.to_string(),
+        }
+    }
+}
+
+fn usage(message: impl Into<String>) -> Failure {
+    Failure {
+        code: 2,
+        message: message.into(),
+    }
+}
+
+fn main() -> ExitCode {
+    // A bug must still end in a readable line, not a backtrace.
+    std::panic::set_hook(Box::new(|info| {
+        eprintln!("springbake: internal error: {info}");
+    }));
+    let cli = Cli::parse();
+    match run(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("springbake: error: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn run(command: Command) -> Result<(), Failure> {
+    match command {
+        Command::Bake {
+            input,
+            output,
+            frames,
+            fps,
+            cells,
+            material,
+            report,
+        } => {
+            let overrides = MeshOverrides {
+                output,
+                frames,
+                fps,
+                cells,
+                material,
+            };
+            let loaded = load_input(&input, &overrides)?;
+            run_bake(&loaded, report.as_deref())
+        }
+        Command::Demo { output, report } => {
+            let dir = tempfile::tempdir().map_err(|e| Failure {
+                code: 1,
+                message: format!("cannot create a temporary folder: {e}"),
+            })?;
+            let loaded = demo::demo_scene(dir.path(), &output).map_err(|e| Failure {
+                code: 1,
+                message: e,
+            })?;
+            run_bake(&loaded, report.as_deref())
+        }
+        Command::Inspect { file, cells, json } => inspect(&file, cells, json),
+        Command::Plugins => {
+            let registry = default_registry();
+            println!("importers:");
+            for i in registry.importers() {
+                println!("  {:<6} {}", i.name(), i.extensions().join(", "));
+            }
+            println!("exporters:");
+            for e in registry.exporters() {
+                println!("  {:<6} {}", e.name(), e.extensions().join(", "));
+            }
+            Ok(())
+        }
+        Command::Watch {
+            input,
+            output,
+            json,
+        } => watch(input, output, json),
+    }
+}
+
+fn is_scene(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+}
+
+fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene, Failure> {
+    if !input.exists() {
+        return Err(usage(format!("{}: no such file", input.display())));
+    }
+    if is_scene(input) {
+        let mut loaded = springbake_pipeline::load_scene(input)?;
+        if let Some(o) = &overrides.output {
+            loaded.scene.output.path = std::env::current_dir()
+                .map(|d| d.join(o))
+                .unwrap_or_else(|_| o.clone());
+        }
+        if let Some(n) = overrides.frames {
+            loaded.scene.output.frames = n;
+        }
+        if let Some(f) = overrides.fps {
+            loaded.scene.output.fps = f;
+        }
+        springbake_pipeline::validate_scene(&loaded.scene).map_err(usage)?;
+        Ok(loaded)
+    } else {
+        let loaded = springbake_pipeline::default_scene_for_mesh(input, overrides);
+        springbake_pipeline::validate_scene(&loaded.scene).map_err(usage)?;
+        Ok(loaded)
+    }
+}
+
+fn run_bake(loaded: &LoadedScene, report: Option<&Path>) -> Result<(), Failure> {
+    let registry = default_registry();
+    let total = loaded.scene.output.frames;
+    let interactive = std::io::stderr().is_terminal();
+    let bar = interactive.then(|| {
+        let bar = ProgressBar::new(total as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} baking [{bar:30}] frame {pos}/{len} {elapsed} eta {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        bar
+    });
+    let mut last_percent = 0;
+    let mut progress = |done: usize, total: usize| {
+        if let Some(bar) = &bar {
+            bar.set_position(done as u64);
+        } else {
+            let percent = done * 100 / total.max(1);
+            if percent >= last_percent + 25 || done == total {
+                eprintln!("springbake: frame {done}/{total}");
+                last_percent = percent;
+            }
+        }
+    };
+    let mut hooks = BakeHooks {
+        cancelled: None,
+        progress: Some(&mut progress),
+    };
+    let outcome = bake(&registry, loaded, &mut hooks);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let outcome = outcome?;
+    if let Some(path) = report {
+        let json = serde_json::to_vec_pretty(&outcome.report).map_err(|e| Failure {
+            code: 1,
+            message: e.to_string(),
+        })?;
+        springbake_pipeline::write_outputs(&[springbake_core::plugin::OutputFile {
+            path: path.to_path_buf(),
+            bytes: json,
+        }])?;
+    }
+    let r = &outcome.report;
+    let nodes: usize = r.bodies.iter().map(|b| b.nodes).sum();
+    let inverted = r.frames.iter().map(|f| f.inverted_cells).max().unwrap_or(0);
+    for out in &outcome.outputs {
+        println!(
+            "baked {} frames of {} bodies ({nodes} nodes) in {:.2} s (simulate {:.2} s): {}",
+            r.frames.len(),
+            r.bodies.len(),
+            r.seconds.import + r.seconds.fit + r.seconds.simulate + r.seconds.export,
+            r.seconds.simulate,
+            out.display()
+        );
+    }
+    if inverted > 0 {
+        eprintln!("springbake: warning: up to {inverted} lattice cells inverted during the bake; try more cells, a softer impact or springs = \"both\"");
+    }
+    Ok(())
+}
+
+fn inspect(file: &Path, cells: u32, json: bool) -> Result<(), Failure> {
+    use springbake_core::lattice::{fit_lattice, FitSettings, Resolution};
+    let registry = default_registry();
+    let importer = registry.importer_for(file).ok_or_else(|| {
+        usage(format!(
+            "{}: no importer for this extension; springbake reads {}",
+            file.display(),
+            registry.import_extensions().join(", ")
+        ))
+    })?;
+    let bytes = std::fs::read(file).map_err(|e| usage(format!("{}: {e}", file.display())))?;
+    let scene = importer
+        .import(file, &bytes, &Default::default())
+        .map_err(|e| Failure::from(PipelineError::from(e)))?;
+    let mut meshes = Vec::new();
+    for m in &scene.meshes {
+        let points: Vec<_> = m
+            .world_positions()
+            .iter()
+            .map(|p| p * scene.meters_per_unit)
+            .collect();
+        let (lo, hi) = points.iter().fold(
+            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(lo, hi), p| {
+                (
+                    [lo[0].min(p.x), lo[1].min(p.y), lo[2].min(p.z)],
+                    [hi[0].max(p.x), hi[1].max(p.y), hi[2].max(p.z)],
+                )
+            },
+        );
+        let settings = FitSettings {
+            resolution: Resolution::CellsAlongLongest(cells),
+            up_index: scene.up_axis.index(),
+            ..FitSettings::default()
+        };
+        let lattice = fit_lattice(&points, &m.triangles(), &settings)
+            .map_err(|e| usage(format!("{}: mesh \"{}\": {e}", file.display(), m.name)))?;
+        meshes.push(serde_json::json!({
+            "name": m.name,
+            "vertices": m.vertex_count(),
+            "triangles": m.triangle_count(),
+            "primitives": m.primitives.len(),
+            "materials": m.primitives.iter().filter_map(|p| p.material.clone()).collect::<Vec<_>>(),
+            "bounds_m": { "min": lo, "max": hi },
+            "lattice": { "cells": lattice.cell_count(), "nodes": lattice.node_count(), "springs": lattice.springs.len(),
+                          "islands": lattice.island_count, "cell_size_m": lattice.cell_size, "dims": lattice.dims },
+        }));
+    }
+    let doc = serde_json::json!({
+        "file": file.display().to_string(),
+        "format": importer.name(),
+        "up_axis": format!("{:?}", scene.up_axis),
+        "meters_per_unit": scene.meters_per_unit,
+        "meshes": meshes,
+    });
+    if json {
+        println!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
+    } else {
+        println!(
+            "{} ({}, {:?}-up, {} m per unit)",
+            file.display(),
+            importer.name(),
+            scene.up_axis,
+            scene.meters_per_unit
+        );
+        for m in doc["meshes"].as_array().into_iter().flatten() {
+            println!(
+                "  {}: {} vertices, {} triangles, bounds {} .. {} m",
+                m["name"].as_str().unwrap_or(""),
+                m["vertices"],
+                m["triangles"],
+                m["bounds_m"]["min"],
+                m["bounds_m"]["max"]
+            );
+            let l = &m["lattice"];
+            println!(
+                "    lattice at {cells} cells: {} cells, {} nodes, {} springs, {} island(s), cell {:.4} m",
+                l["cells"], l["nodes"], l["springs"], l["islands"], l["cell_size_m"].as_f64().unwrap_or(0.0)
+            );
+        }
+    }
+    Ok(())
+}
+
+fn watch(input: PathBuf, output: Option<PathBuf>, json: bool) -> Result<(), Failure> {
+    use springbake_watcher::{install_ctrlc, CancelToken, WatchOptions, Watcher};
+    if !input.exists() {
+        return Err(usage(format!("{}: no such file", input.display())));
+    }
+    let bake_input = if is_scene(&input) {
+        BakeInput::Scene(input)
+    } else {
+        BakeInput::Mesh(
+            input,
+            MeshOverrides {
+                output,
+                ..MeshOverrides::default()
+            },
+        )
+    };
+    let stop = CancelToken::new();
+    install_ctrlc(stop.clone()).map_err(|e| Failure {
+        code: 1,
+        message: e.to_string(),
+    })?;
+    let job = BakeJob {
+        registry: default_registry(),
+        input: bake_input,
+    };
+    Watcher::new(job, WatchOptions::default())
+        .run_until(&stop, |event| {
+            if json {
+                println!("{}", event.to_json_line());
+            } else {
+                println!("{event}");
+            }
+        })
+        .map_err(|e| Failure {
+            code: 1,
+            message: e.to_string(),
+        })?;
+    Ok(())
+}

@@ -1,1 +1,329 @@
-//! The bake pipeline: scene file -> import -> fit -> simulate -> export.
+//! The bake pipeline, shared by the CLI, the watcher and the viewer. Data flows one way:
+//!
+//! 1. [`load_scene`] reads a scene file ([`springbake_core::scene::SceneFile`]), or
+//!    [`default_scene_for_mesh`] makes one for a bare mesh;
+//! 2. [`prepare`] imports every body's source through the plug-in [`Registry`], converts it to
+//!    the simulation frame (metres, the scene's up axis), fits a lattice and embeds the mesh;
+//! 3. [`Prepared::simulate`] steps the world frame by frame and records every vertex;
+//! 4. [`export`] hands the baked frames to the exporter for the output's extension, and
+//!    [`write_outputs`] writes the files atomically (temp file + rename).
+//!
+//! [`bake`] runs all four and returns the report (`--report` JSON).
+
+mod frame;
+mod report;
+mod simulate;
+pub mod watch;
+
+pub use frame::SimFrame;
+pub use report::{BodyReport, Report, Seconds};
+pub use simulate::{prepare, Prepared, PreparedBody};
+
+use springbake_core::plugin::{
+    CacheKind, ExportSettings, IoErrorKind, OutputFile, PluginError, Registry,
+};
+use springbake_core::scene::{BodySection, CacheSpec, MaterialSpec, SceneFile};
+use springbake_core::solver::SimulationError;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The host's registry with every built-in plug-in: glTF, OBJ, USD importers; glTF, PC2,
+/// MDD, USD exporters.
+pub fn default_registry() -> Registry {
+    let mut registry = Registry::new();
+    registry
+        .add_plugin(&springbake_importers::BuiltinImporters)
+        .add_plugin(&springbake_exporters::BuiltinExporters)
+        .add_plugin(&springbake_usd::UsdPlugin);
+    registry
+}
+
+/// Why a bake failed. `is_user_error` tells the CLI to exit with code 2.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("{path}: {message}")]
+    Scene { path: PathBuf, message: String },
+    #[error("{0}")]
+    Plugin(#[from] PluginError),
+    #[error("body {body} ({source_path}): {message}")]
+    Body {
+        body: usize,
+        source_path: PathBuf,
+        message: String,
+    },
+    #[error("{0}")]
+    Simulation(#[from] SimulationError),
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("{0}")]
+    Usage(String),
+}
+
+impl PipelineError {
+    /// True when the user's input is at fault (exit code 2), false for internal failures.
+    pub fn is_user_error(&self) -> bool {
+        match self {
+            PipelineError::Scene { .. } | PipelineError::Body { .. } | PipelineError::Usage(_) => {
+                true
+            }
+            PipelineError::Plugin(p) => p.kind != IoErrorKind::Io || !p.path.exists(),
+            PipelineError::Simulation(SimulationError::NonFinite { .. }) => true,
+            PipelineError::Simulation(SimulationError::Cancelled) => false,
+            PipelineError::Io { .. } => false,
+        }
+    }
+
+    pub fn is_cancelled(&self) -> bool {
+        matches!(self, PipelineError::Simulation(SimulationError::Cancelled))
+    }
+}
+
+/// A scene file and the folder its relative paths start from.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    pub scene: SceneFile,
+    /// The scene file itself, when there is one (not for a bare-mesh bake).
+    pub scene_path: Option<PathBuf>,
+    /// Folder that `source` and `output.path` are relative to.
+    pub base_dir: PathBuf,
+}
+
+impl LoadedScene {
+    /// Absolute path of a body's source.
+    pub fn source_path(&self, body: &BodySection) -> PathBuf {
+        self.base_dir.join(&body.source)
+    }
+
+    /// The output file.
+    pub fn output_path(&self) -> PathBuf {
+        self.base_dir.join(&self.scene.output.path)
+    }
+
+    /// Every file the bake reads: the scene file and each body's source (for watch mode).
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        let mut out: Vec<PathBuf> = self.scene_path.iter().cloned().collect();
+        for b in &self.scene.body {
+            let p = self.source_path(b);
+            if !out.contains(&p) {
+                out.push(p);
+            }
+        }
+        out
+    }
+}
+
+/// Read and parse a scene file; errors name the file, line and column.
+pub fn load_scene(path: &Path) -> Result<LoadedScene, PipelineError> {
+    let text = std::fs::read_to_string(path).map_err(|e| PipelineError::Scene {
+        path: path.to_path_buf(),
+        message: format!("cannot read the scene file: {e}"),
+    })?;
+    let scene = SceneFile::parse(&text).map_err(|e| PipelineError::Scene {
+        path: path.to_path_buf(),
+        message: e.message,
+    })?;
+    validate_scene(&scene).map_err(|message| PipelineError::Scene {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    Ok(LoadedScene {
+        scene,
+        scene_path: Some(path.to_path_buf()),
+        base_dir,
+    })
+}
+
+/// Values the parser accepts but a bake cannot use.
+pub fn validate_scene(scene: &SceneFile) -> Result<(), String> {
+    let o = &scene.output;
+    if !(o.fps > 0.0 && o.fps.is_finite()) {
+        return Err(format!("output.fps must be positive, got {}", o.fps));
+    }
+    if o.frames == 0 {
+        return Err("output.frames must be at least 1".into());
+    }
+    if scene.body.is_empty() {
+        return Err("the scene has no [[body]]: nothing to simulate".into());
+    }
+    for (i, b) in scene.body.iter().enumerate() {
+        if b.cells == Some(0) {
+            return Err(format!("body[{i}].cells must be at least 1"));
+        }
+        if let Some(h) = b.cell_size {
+            if !(h > 0.0 && h.is_finite()) {
+                return Err(format!("body[{i}].cell_size must be positive, got {h}"));
+            }
+        }
+        b.material
+            .resolve()
+            .map_err(|e| format!("body[{i}].material: {e}"))?;
+    }
+    if !(scene.world.friction >= 0.0 && scene.world.friction.is_finite()) {
+        return Err(format!(
+            "world.friction must be >= 0, got {}",
+            scene.world.friction
+        ));
+    }
+    for (i, m) in scene.manipulator.iter().enumerate() {
+        if !(m.radius > 0.0 && m.length >= 0.0) {
+            return Err(format!(
+                "manipulator[{i}]: radius must be > 0 and length >= 0"
+            ));
+        }
+        if m.keys.is_empty() {
+            return Err(format!("manipulator[{i}].keys is empty"));
+        }
+    }
+    Ok(())
+}
+
+/// Command-line overrides for a bare-mesh bake.
+#[derive(Debug, Clone, Default)]
+pub struct MeshOverrides {
+    pub output: Option<PathBuf>,
+    pub frames: Option<usize>,
+    pub fps: Option<f64>,
+    pub cells: Option<u32>,
+    pub material: Option<String>,
+}
+
+/// Frames of a bare-mesh bake: 3 s at 24 fps, long enough to fall, land, wobble and settle.
+pub const DEFAULT_MESH_FRAMES: usize = 72;
+
+/// The default scene for a bare mesh: rubber, about 10 cells, a floor (placed by
+/// [`Prepared`] at height 0 when the mesh is above it, else below its lowest point), the
+/// output next to the mesh as `<stem>.baked.glb`.
+pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
+    let mut scene = SceneFile::default();
+    let stem = mesh.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh");
+    scene.output.path = o
+        .output
+        .clone()
+        .unwrap_or_else(|| mesh.with_file_name(format!("{stem}.baked.glb")));
+    scene.output.frames = o.frames.unwrap_or(DEFAULT_MESH_FRAMES);
+    if let Some(fps) = o.fps {
+        scene.output.fps = fps;
+    }
+    scene.world.floor = Some(f64::NAN); // "automatic": resolved against the mesh in `prepare`
+    scene.body.push(BodySection {
+        source: mesh.to_path_buf(),
+        cells: Some(o.cells.unwrap_or(springbake_core::scene::DEFAULT_CELLS)),
+        cell_size: None,
+        material: o
+            .material
+            .clone()
+            .map(MaterialSpec::Preset)
+            .unwrap_or_default(),
+        offset: [0.0; 3],
+        velocity: [0.0; 3],
+        springs: Default::default(),
+    });
+    LoadedScene {
+        scene,
+        scene_path: None,
+        base_dir: PathBuf::new(),
+    }
+}
+
+/// Run the exporter for the output's extension.
+pub fn export(
+    registry: &Registry,
+    prepared: &Prepared,
+    baked: &springbake_core::bake::BakedScene,
+    output: &Path,
+    cache: CacheSpec,
+) -> Result<Vec<OutputFile>, PipelineError> {
+    let exporter = registry.exporter_for(output).ok_or_else(|| {
+        PipelineError::Usage(format!(
+            "{}: no exporter for this extension; springbake writes {}",
+            output.display(),
+            registry.export_extensions().join(", ")
+        ))
+    })?;
+    let settings = ExportSettings {
+        path: output.to_path_buf(),
+        cache: match cache {
+            CacheSpec::Morph => CacheKind::Morph,
+            CacheSpec::Skin => CacheKind::Skin,
+        },
+    };
+    Ok(exporter.export(&prepared.export_scene, baked, &settings)?)
+}
+
+/// Write every file atomically: each goes to a temporary file beside it and is renamed over
+/// the target only when complete, so a reader never sees half a file and a failed bake leaves
+/// the previous output untouched.
+pub fn write_outputs(files: &[OutputFile]) -> Result<(), PipelineError> {
+    for f in files {
+        if let Some(dir) = f.path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| PipelineError::Io {
+                path: dir.to_path_buf(),
+                message: format!("cannot create the output folder: {e}"),
+            })?;
+        }
+        springbake_watcher::atomic::write_atomically(&f.path, &f.bytes).map_err(|e| {
+            PipelineError::Io {
+                path: f.path.clone(),
+                message: format!("cannot write the output: {e}"),
+            }
+        })?;
+    }
+    Ok(())
+}
+
+/// Hooks a host passes to a bake: cancellation (polled every frame) and progress.
+#[derive(Default)]
+pub struct BakeHooks<'a> {
+    pub cancelled: Option<&'a (dyn Fn() -> bool + Sync)>,
+    /// Called after each frame with (frames done, frames total).
+    pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
+}
+
+/// The outcome of a bake: the report and the files written.
+#[derive(Debug, Clone)]
+pub struct BakeOutcome {
+    pub report: Report,
+    pub outputs: Vec<PathBuf>,
+}
+
+/// Import, fit, simulate, export and write. Nothing is written unless every stage succeeded.
+pub fn bake(
+    registry: &Registry,
+    loaded: &LoadedScene,
+    hooks: &mut BakeHooks,
+) -> Result<BakeOutcome, PipelineError> {
+    let output = loaded.output_path();
+    // Fail on an unknown output format before spending time simulating.
+    if registry.exporter_for(&output).is_none() {
+        return Err(PipelineError::Usage(format!(
+            "{}: no exporter for this extension; springbake writes {}",
+            output.display(),
+            registry.export_extensions().join(", ")
+        )));
+    }
+    let mut seconds = Seconds::default();
+    let mut prepared = prepare(registry, loaded, &mut seconds)?;
+    let t1 = Instant::now();
+    let (baked, frames) = prepared.simulate(&loaded.scene, hooks)?;
+    seconds.simulate = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let files = export(
+        registry,
+        &prepared,
+        &baked,
+        &output,
+        loaded.scene.output.cache,
+    )?;
+    write_outputs(&files)?;
+    seconds.export = t2.elapsed().as_secs_f64();
+    Ok(BakeOutcome {
+        report: Report {
+            bodies: prepared.body_reports(),
+            frames,
+            events: Vec::new(),
+            seconds,
+        },
+        outputs: files.into_iter().map(|f| f.path).collect(),
+    })
+}

@@ -1,0 +1,457 @@
+//! Import, fit and simulate: from a [`LoadedScene`] to baked frames.
+
+use crate::frame::SimFrame;
+use crate::report::{BodyReport, Seconds};
+use crate::{BakeHooks, LoadedScene, PipelineError};
+use springbake_core::bake::{BakedLattice, BakedMesh, BakedScene};
+use springbake_core::display::{ImportedScene, SourceDocument};
+use springbake_core::lattice::{fit_lattice, Embedding, FitSettings, Lattice, Resolution};
+use springbake_core::material::Material;
+use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
+use springbake_core::plugin::{ImportSettings, Registry};
+use springbake_core::scene::{CacheSpec, Interpolation, SceneFile, DEFAULT_CELLS};
+use springbake_core::solver::manipulator::{ManipulatorKey, ManipulatorTrack};
+use springbake_core::solver::{
+    BodyHandle, DispersionMode, FrameDiagnostics, Plane, World, WorldSettings,
+};
+use std::time::Instant;
+
+/// One simulated mesh.
+#[derive(Debug, Clone)]
+pub struct PreparedBody {
+    pub name: String,
+    /// Index into [`Prepared::export_scene`]'s meshes.
+    pub mesh_index: usize,
+    pub lattice: Lattice,
+    pub embedding: Embedding,
+    pub handle: BodyHandle,
+    pub material: Material,
+    /// Maps simulation metres back to the mesh's local frame in source units.
+    pub local_from_sim: Matrix4<f64>,
+}
+
+/// Everything ready to simulate.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    pub world: World,
+    pub bodies: Vec<PreparedBody>,
+    /// The scene the exporter writes into (the source document, or a merge of several).
+    pub export_scene: ImportedScene,
+    pub frame: SimFrame,
+    /// Floor height along up, metres, if any.
+    pub floor: Option<f64>,
+}
+
+fn import_all(
+    registry: &Registry,
+    loaded: &LoadedScene,
+) -> Result<Vec<ImportedScene>, PipelineError> {
+    let mut scenes = Vec::new();
+    for (i, body) in loaded.scene.body.iter().enumerate() {
+        let path = loaded.source_path(body);
+        let importer = registry
+            .importer_for(&path)
+            .ok_or_else(|| PipelineError::Body {
+                body: i,
+                source_path: path.clone(),
+                message: format!(
+                    "no importer for this extension; springbake reads {}",
+                    registry.import_extensions().join(", ")
+                ),
+            })?;
+        let bytes = std::fs::read(&path).map_err(|e| PipelineError::Body {
+            body: i,
+            source_path: path.clone(),
+            message: format!("cannot read the source file: {e}"),
+        })?;
+        scenes.push(importer.import(&path, &bytes, &ImportSettings::default())?);
+    }
+    Ok(scenes)
+}
+
+/// Import every source, convert to the simulation frame, fit lattices and build the world.
+pub fn prepare(
+    registry: &Registry,
+    loaded: &LoadedScene,
+    seconds: &mut Seconds,
+) -> Result<Prepared, PipelineError> {
+    let scene = &loaded.scene;
+    let t_import = Instant::now();
+    let imported = import_all(registry, loaded)?;
+    seconds.import = t_import.elapsed().as_secs_f64();
+    let t_fit = Instant::now();
+    let frame = SimFrame {
+        up: scene.world.up.unwrap_or(imported[0].up_axis),
+    };
+    let up = frame.up_vector();
+
+    // The export scene: the one source document, or a merge (exporters then build a fresh one).
+    let single_source = imported
+        .windows(2)
+        .all(|w| w[0].source.path == w[1].source.path)
+        && imported.len() == 1;
+    let mut export_scene = if single_source {
+        imported[0].clone()
+    } else {
+        ImportedScene {
+            meshes: Vec::new(),
+            up_axis: frame.up,
+            meters_per_unit: 1.0,
+            source: SourceDocument {
+                path: loaded.output_path(),
+                importer: "merged".into(),
+            },
+        }
+    };
+
+    struct Pending {
+        name: String,
+        mesh_index: usize,
+        points: Vec<Point3<f64>>,
+        triangles: Vec<[u32; 3]>,
+        body: usize,
+        local_from_sim: Matrix4<f64>,
+    }
+    let mut pending = Vec::new();
+    for (b, (section, source)) in scene.body.iter().zip(&imported).enumerate() {
+        let sim_from_source = frame.sim_from_source(source.up_axis, source.meters_per_unit);
+        let offset = Vector3::from(section.offset);
+        for mesh in &source.meshes {
+            let mesh_index = if single_source {
+                pending.len()
+            } else {
+                // Meshes of a merged scene are stored in simulation metres.
+                let mut m = mesh.clone();
+                m.world_from_local =
+                    Matrix4::new_translation(&offset) * sim_from_source * mesh.world_from_local;
+                export_scene.meshes.push(m);
+                export_scene.meshes.len() - 1
+            };
+            let sim_from_local =
+                Matrix4::new_translation(&offset) * sim_from_source * mesh.world_from_local;
+            let local_from_sim = if single_source {
+                // Offsets are motion: the baked frames carry them in the source's own frame.
+                (sim_from_source * mesh.world_from_local).try_inverse()
+            } else {
+                export_scene.meshes[mesh_index]
+                    .world_from_local
+                    .try_inverse()
+            }
+            .ok_or_else(|| PipelineError::Body {
+                body: b,
+                source_path: source.source.path.clone(),
+                message: format!(
+                    "mesh \"{}\" has a singular transform (a zero scale?)",
+                    mesh.name
+                ),
+            })?;
+            let points: Vec<Point3<f64>> = mesh
+                .primitives
+                .iter()
+                .flat_map(|p| p.positions.iter())
+                .map(|q| {
+                    sim_from_local.transform_point(&Point3::new(
+                        q[0] as f64,
+                        q[1] as f64,
+                        q[2] as f64,
+                    ))
+                })
+                .collect();
+            pending.push(Pending {
+                name: mesh.name.clone(),
+                mesh_index,
+                points,
+                triangles: mesh.triangles(),
+                body: b,
+                local_from_sim,
+            });
+        }
+    }
+
+    // Floor: explicit, none, or automatic (NaN): 0 when everything is above it, else a quarter
+    // of the tallest mesh below the lowest point, so the mesh still drops onto it.
+    let floor = match scene.world.floor {
+        Some(h) if h.is_nan() => {
+            let (mut lowest, mut tallest) = (f64::INFINITY, 0.0f64);
+            for p in &pending {
+                let heights = p.points.iter().map(|q| q.coords.dot(&up));
+                let (lo, hi) = heights.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| {
+                    (lo.min(h), hi.max(h))
+                });
+                lowest = lowest.min(lo);
+                tallest = tallest.max(hi - lo);
+            }
+            Some(if lowest >= 0.0 {
+                0.0
+            } else {
+                lowest - 0.25 * tallest
+            })
+        }
+        other => other,
+    };
+
+    let mut bodies = Vec::new();
+    let mut fitted = Vec::new();
+    for p in &pending {
+        let section = &scene.body[p.body];
+        let resolution = match (section.cell_size, section.cells) {
+            (Some(h), _) => Resolution::CellSize(h),
+            (None, n) => Resolution::CellsAlongLongest(n.unwrap_or(DEFAULT_CELLS)),
+        };
+        let settings = FitSettings {
+            resolution,
+            layout: section.springs,
+            up_index: frame.up.index(),
+            ..FitSettings::default()
+        };
+        let lattice =
+            fit_lattice(&p.points, &p.triangles, &settings).map_err(|e| PipelineError::Body {
+                body: p.body,
+                source_path: loaded.source_path(section),
+                message: format!("mesh \"{}\": {e}", p.name),
+            })?;
+        let material = section
+            .material
+            .resolve()
+            .map_err(|e| PipelineError::Body {
+                body: p.body,
+                source_path: loaded.source_path(section),
+                message: e.to_string(),
+            })?;
+        fitted.push((lattice, material));
+    }
+    seconds.fit = t_fit.elapsed().as_secs_f64();
+
+    // One elastic layer for the world: from the finest lattice and the stiffest material.
+    let (finest, stiffest) = fitted
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(c, k), (l, m)| {
+            (c.min(l.cell_size), k.max(m.spring_constant(l.cell_size)))
+        });
+    let reference = fitted
+        .iter()
+        .map(|(_, m)| m)
+        .max_by(|a, b| a.young_pa.total_cmp(&b.young_pa))
+        .cloned()
+        .unwrap_or_else(|| Material::preset("rubber").expect("rubber is a preset"));
+    let mut layer = WorldSettings::default_layer(finest, &reference, scene.world.friction);
+    layer.stiffness = layer.stiffness.max(10.0 * stiffest);
+    if let Some(t) = scene.world.contact_thickness {
+        layer.thickness_m = t;
+    }
+    if let Some(k) = scene.world.contact_stiffness {
+        layer.stiffness = k;
+    }
+
+    let mut planes = Vec::new();
+    if let Some(h) = floor {
+        planes.push(Plane {
+            normal: up,
+            offset: h,
+        });
+    }
+    if let Some(room) = &scene.world.walls {
+        for axis in 0..3 {
+            if axis == frame.up.index() {
+                continue;
+            }
+            let mut n = Vector3::zeros();
+            n[axis] = 1.0;
+            planes.push(Plane {
+                normal: n,
+                offset: room.min[axis],
+            });
+            planes.push(Plane {
+                normal: -n,
+                offset: -room.max[axis],
+            });
+        }
+    }
+    let settings = WorldSettings {
+        gravity: -up * scene.world.gravity,
+        up,
+        planes,
+        layer,
+        dispersion: if scene.solver.dispersion {
+            DispersionMode::Bounded
+        } else {
+            DispersionMode::Off
+        },
+        max_dispersion_iterations: scene.solver.max_dispersion_iterations,
+        accuracy_n: scene.solver.accuracy_n,
+        fixed_substeps: match scene.solver.substeps {
+            springbake_core::scene::SubstepSpec::Auto => None,
+            springbake_core::scene::SubstepSpec::Fixed(n) => Some(n),
+        },
+        ..WorldSettings::default()
+    };
+    let mut world = World::new(settings);
+    for m in &scene.manipulator {
+        let mut keys: Vec<ManipulatorKey> = m
+            .keys
+            .iter()
+            .map(|k| ManipulatorKey {
+                t: k.t,
+                position: Vector3::from(k.position),
+                yaw_deg: k.yaw,
+            })
+            .collect();
+        keys.sort_by(|a, b| a.t.total_cmp(&b.t));
+        world.manipulators.push(ManipulatorTrack {
+            radius: m.radius,
+            length: m.length,
+            friction: m.friction,
+            smooth: m.interpolation == Interpolation::Smooth,
+            keys,
+            up,
+        });
+    }
+    for (p, (lattice, material)) in pending.into_iter().zip(fitted) {
+        let velocity = Vector3::from(scene.body[p.body].velocity);
+        let handle = world.add_lattice_body(p.name.clone(), &lattice, &material, velocity);
+        let embedding = Embedding::new(&lattice, &p.points);
+        bodies.push(PreparedBody {
+            name: p.name,
+            mesh_index: p.mesh_index,
+            lattice,
+            embedding,
+            handle,
+            material,
+            local_from_sim: p.local_from_sim,
+        });
+    }
+    Ok(Prepared {
+        world,
+        bodies,
+        export_scene,
+        frame,
+        floor,
+    })
+}
+
+fn to_local(m: &Matrix4<f64>, p: &Point3<f64>) -> [f32; 3] {
+    let q = m.transform_point(p);
+    [q.x as f32, q.y as f32, q.z as f32]
+}
+
+impl Prepared {
+    /// The report's per-body lines.
+    pub fn body_reports(&self) -> Vec<BodyReport> {
+        self.bodies
+            .iter()
+            .map(|b| BodyReport {
+                name: b.name.clone(),
+                nodes: b.lattice.node_count(),
+                springs: b.lattice.springs.len(),
+                cells: b.lattice.cell_count(),
+                islands: b.lattice.island_count,
+                cell_size: b.lattice.cell_size,
+                material: b.material.name.clone(),
+                mass_kg: b.material.density_kg_m3 * b.lattice.volume(),
+            })
+            .collect()
+    }
+
+    /// Display-vertex positions of every body now, in simulation metres.
+    pub fn vertex_positions(&self, body: usize) -> Vec<Point3<f64>> {
+        let b = &self.bodies[body];
+        b.embedding.points(&self.world.body_points(b.handle))
+    }
+
+    fn record(&self, meshes: &mut [BakedMesh], with_lattice: bool) {
+        for (b, baked) in self.bodies.iter().zip(meshes.iter_mut()) {
+            let nodes = self.world.body_points(b.handle);
+            let verts = b.embedding.points(&nodes);
+            baked.frames.push(
+                verts
+                    .iter()
+                    .map(|p| to_local(&b.local_from_sim, p))
+                    .collect(),
+            );
+            if with_lattice {
+                if let Some(l) = baked.lattice.as_mut() {
+                    l.frames.push(
+                        nodes
+                            .iter()
+                            .map(|p| to_local(&b.local_from_sim, p))
+                            .collect(),
+                    );
+                }
+            }
+        }
+    }
+
+    /// Run the bake: frame 1 is the initial state at t = 0, each later frame one 1/fps step on.
+    pub fn simulate(
+        &mut self,
+        scene: &SceneFile,
+        hooks: &mut BakeHooks,
+    ) -> Result<(BakedScene, Vec<FrameDiagnostics>), PipelineError> {
+        let fps = scene.output.fps;
+        let total = scene.output.frames;
+        let with_lattice = scene.output.cache == CacheSpec::Skin;
+        let mut meshes: Vec<BakedMesh> = self
+            .bodies
+            .iter()
+            .map(|b| BakedMesh {
+                mesh_index: b.mesh_index,
+                frames: Vec::with_capacity(total),
+                lattice: with_lattice.then(|| BakedLattice {
+                    rest: b
+                        .lattice
+                        .rest_positions
+                        .iter()
+                        .map(|p| to_local(&b.local_from_sim, p))
+                        .collect(),
+                    frames: Vec::with_capacity(total),
+                    vertex_nodes: b.embedding.nodes.clone(),
+                    vertex_weights: b
+                        .embedding
+                        .weights
+                        .iter()
+                        .map(|w| w.map(|x| x as f32))
+                        .collect(),
+                }),
+            })
+            .collect();
+        let mut diagnostics = Vec::with_capacity(total);
+        let mut first = self.world.diagnostics(1);
+        first.max_penetration = self.current_penetration();
+        diagnostics.push(first);
+        self.record(&mut meshes, with_lattice);
+        if let Some(p) = hooks.progress.as_mut() {
+            p(1, total);
+        }
+        let never = || false;
+        let cancelled: &(dyn Fn() -> bool + Sync) = hooks.cancelled.unwrap_or(&never);
+        for f in 2..=total {
+            if cancelled() {
+                return Err(springbake_core::solver::SimulationError::Cancelled.into());
+            }
+            let d = self.world.advance_frame(1.0 / fps, f, cancelled)?;
+            diagnostics.push(d);
+            self.record(&mut meshes, with_lattice);
+            if let Some(p) = hooks.progress.as_mut() {
+                p(f, total);
+            }
+        }
+        Ok((
+            BakedScene {
+                fps,
+                frame_count: total,
+                meshes,
+            },
+            diagnostics,
+        ))
+    }
+
+    fn current_penetration(&self) -> f64 {
+        let planes = &self.world.settings.planes;
+        self.world
+            .nodes
+            .position
+            .iter()
+            .flat_map(|x| planes.iter().map(move |p| p.offset - p.normal.dot(x)))
+            .fold(0.0, f64::max)
+    }
+}
