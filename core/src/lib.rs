@@ -14,5 +14,7 @@ pub mod plugin;
 pub mod scene;
 
 pub use nalgebra;
+pub mod events;
+pub mod hertz;
 pub mod shapes;
 pub mod solver;
