@@ -91,6 +91,30 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Open the interactive viewer (orbit, play/scrub, lattice overlay, live mode with a
+    /// mouse-driven capsule, parameter panel, live reload), or render one frame to a PNG.
+    View {
+        /// A scene file (.toml), a mesh, or a baked .glb/.gltf (morph frames are played back).
+        file: PathBuf,
+        /// Render this frame with the software rasterizer to a PNG and exit (no window, no GPU).
+        #[arg(long, value_name = "OUT.png")]
+        screenshot: Option<PathBuf>,
+        /// Frame to show (1 = the initial state).
+        #[arg(long, default_value_t = 1)]
+        frame: usize,
+        /// Screenshot size in pixels, WIDTHxHEIGHT.
+        #[arg(long, default_value = "800x600", value_parser = parse_size)]
+        size: (u32, u32),
+    },
+}
+
+/// `WIDTHxHEIGHT` for `view --size`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got \"{s}\""))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("\"{v}\": {e}"));
+    Ok((parse(w)?, parse(h)?))
 }
 
 /// A failure and its exit code.
@@ -180,6 +204,32 @@ fn run(command: Command) -> Result<(), Failure> {
             output,
             json,
         } => watch(input, output, json),
+        Command::View {
+            file,
+            screenshot,
+            frame,
+            size,
+        } => {
+            let result = match screenshot {
+                Some(output) => {
+                    springbake_viewer::render_screenshot(&springbake_viewer::ScreenshotArgs {
+                        input: file,
+                        frame,
+                        output,
+                        width: size.0,
+                        height: size.1,
+                    })
+                }
+                None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs {
+                    input: file,
+                    frame,
+                }),
+            };
+            result.map_err(|e| Failure {
+                code: if e.is_user_error() { 2 } else { 1 },
+                message: e.to_string(),
+            })
+        }
     }
 }
 

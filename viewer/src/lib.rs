@@ -1,1 +1,154 @@
-//! The interactive egui viewer.
+//! springbake's viewer: `springbake view FILE` opens an egui window (orbit camera, shaded mesh,
+//! lattice overlay, play/pause/scrub, live mode with a mouse-driven capsule, a parameter panel
+//! with a spring plot, live reload); `springbake view FILE --screenshot OUT.png` renders one
+//! frame with the software rasterizer and exits, needing neither a GPU nor a display.
+//!
+//! Modules: [`camera`] (orbit camera math), [`raster`] (CPU shading, z-buffer rasterizer, PNG),
+//! [`source`] (what a file opens as: simulated scene/mesh or baked glTF playback), [`live`]
+//! (manipulator drag with resistance, real-time step plan), [`oscillator`] (the spring plot),
+//! [`reload`] (watcher thread), and the window itself (private `app`).
+
+mod app;
+pub mod camera;
+pub mod live;
+pub mod oscillator;
+pub mod raster;
+pub mod reload;
+pub mod source;
+
+use camera::OrbitCamera;
+use raster::bounds_of;
+use source::ViewSource;
+use springbake_core::plugin::PluginError;
+use springbake_core::solver::SimulationError;
+use springbake_pipeline::PipelineError;
+use std::path::PathBuf;
+
+/// Why the viewer could not show a file. `is_user_error` tells the CLI to exit with code 2.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error("{0}")]
+    Pipeline(#[from] PipelineError),
+    #[error("{0}")]
+    Plugin(#[from] PluginError),
+    #[error("{0}")]
+    Simulation(#[from] SimulationError),
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("{0}")]
+    Usage(String),
+    /// The window could not open (no display, no OpenGL).
+    #[error("cannot open the viewer window: {0}; `springbake view FILE --screenshot OUT.png` renders without a display")]
+    Window(String),
+}
+
+impl ViewerError {
+    /// True when the user's input is at fault (exit code 2).
+    pub fn is_user_error(&self) -> bool {
+        match self {
+            ViewerError::Pipeline(p) => p.is_user_error(),
+            ViewerError::Plugin(_) | ViewerError::Usage(_) => true,
+            ViewerError::Simulation(s) => matches!(s, SimulationError::NonFinite { .. }),
+            ViewerError::Io { .. } | ViewerError::Window(_) => false,
+        }
+    }
+}
+
+/// `springbake view FILE`: what the window opens.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewArgs {
+    /// A scene (.toml), a mesh, or a baked .glb/.gltf.
+    pub input: PathBuf,
+    /// 1-based frame to start at.
+    pub frame: usize,
+}
+
+/// `springbake view FILE --screenshot OUT.png [--frame N]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScreenshotArgs {
+    /// A scene (.toml), a mesh, or a baked .glb/.gltf.
+    pub input: PathBuf,
+    /// 1-based frame (1 = the initial state); a simulation is stepped to it.
+    pub frame: usize,
+    /// The PNG to write.
+    pub output: PathBuf,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl ScreenshotArgs {
+    /// Frame 1 at 800 × 600.
+    pub fn new(input: impl Into<PathBuf>, output: impl Into<PathBuf>) -> ScreenshotArgs {
+        ScreenshotArgs {
+            input: input.into(),
+            frame: 1,
+            output: output.into(),
+            width: 800,
+            height: 600,
+        }
+    }
+}
+
+/// Largest screenshot side, pixels.
+pub const MAX_SCREENSHOT_SIDE: u32 = 8192;
+
+/// The camera a file opens with: framing its frame-1 geometry.
+pub fn initial_camera(
+    meshes: &[raster::DrawMesh],
+    up: springbake_core::nalgebra::Vector3<f64>,
+) -> OrbitCamera {
+    let (lo, hi) = bounds_of(meshes.iter().flat_map(|m| m.positions.iter())).unwrap_or_default();
+    OrbitCamera::framing(lo, hi, up)
+}
+
+/// Render frame `args.frame` of `args.input` to a PNG with the software rasterizer. The camera
+/// frames the first frame's geometry, so frames of one file are drawn from the same view.
+pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
+    if args.width == 0
+        || args.height == 0
+        || args.width > MAX_SCREENSHOT_SIDE
+        || args.height > MAX_SCREENSHOT_SIDE
+    {
+        return Err(ViewerError::Usage(format!(
+            "screenshot size {}x{} is out of range (1 to {MAX_SCREENSHOT_SIDE} pixels a side)",
+            args.width, args.height
+        )));
+    }
+    if args.frame == 0 {
+        return Err(ViewerError::Usage("frames are numbered from 1".into()));
+    }
+    let registry = springbake_pipeline::default_registry();
+    let mut source = ViewSource::open(&registry, &args.input)?;
+    if args.frame > source.frame_count() && matches!(source, ViewSource::Baked(_)) {
+        return Err(ViewerError::Usage(format!(
+            "{}: frame {} asked for, the file has {} frames",
+            args.input.display(),
+            args.frame,
+            source.frame_count()
+        )));
+    }
+    let first = source.meshes_at(1)?;
+    let camera = initial_camera(&first, source.up());
+    let meshes = source.meshes_at(args.frame)?;
+    let image = raster::render(&meshes, &camera, args.width, args.height);
+    let bytes = image.to_png().map_err(|e| ViewerError::Io {
+        path: args.output.clone(),
+        message: format!("cannot encode the PNG: {e}"),
+    })?;
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| ViewerError::Io {
+            path: dir.to_path_buf(),
+            message: format!("cannot create the folder: {e}"),
+        })?;
+    }
+    springbake_watcher::write_atomically(&args.output, &bytes).map_err(|e| ViewerError::Io {
+        path: args.output.clone(),
+        message: format!("cannot write the screenshot: {e}"),
+    })?;
+    Ok(())
+}
+
+/// Open the interactive window on `args.input` and return when it is closed.
+pub fn run_viewer(args: ViewArgs) -> Result<(), ViewerError> {
+    app::run(args)
+}

@@ -1,0 +1,366 @@
+//! CPU shading and the software rasterizer behind `springbake view --screenshot`: world-space
+//! triangle meshes are projected with the [`OrbitCamera`], shaded flat with a Lambert key light
+//! plus ambient (two-sided), and drawn with a z-buffer at 2× supersampling, then box-filtered
+//! and written as an RGBA PNG. Fully deterministic and needs neither a GPU nor a display. The
+//! window reuses [`shade`] and paints the triangles back to front with egui.
+
+use crate::camera::{OrbitCamera, ScreenPoint};
+use springbake_core::nalgebra::Vector3;
+use springbake_core::solver::Capsule;
+
+/// Background colour of screenshots and the 3-D view.
+pub const BACKGROUND: [u8; 3] = [36, 40, 46];
+/// Colour of the simulated bodies.
+pub const BODY_COLOUR: [u8; 3] = [222, 120, 72];
+/// Colour of manipulator capsules.
+pub const CAPSULE_COLOUR: [u8; 3] = [110, 160, 230];
+
+/// A triangle mesh in world metres with one colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrawMesh {
+    pub positions: Vec<Vector3<f64>>,
+    pub triangles: Vec<[u32; 3]>,
+    pub colour: [u8; 3],
+}
+
+impl DrawMesh {
+    /// Axis-aligned bounds of the vertices used by triangles, or `None` when there are none.
+    pub fn bounds(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        bounds_of(self.positions.iter())
+    }
+}
+
+/// Axis-aligned bounds of points.
+pub fn bounds_of<'a>(
+    points: impl Iterator<Item = &'a Vector3<f64>>,
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    points.fold(None, |acc, p| match acc {
+        None => Some((*p, *p)),
+        Some((lo, hi)) => Some((lo.inf(p), hi.sup(p))),
+    })
+}
+
+/// A projected, shaded triangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadedTriangle {
+    pub points: [ScreenPoint; 3],
+    pub colour: [u8; 3],
+}
+
+/// Lambert factor for a face normal seen from `to_eye`: ambient 0.25 plus 0.75 × the key
+/// light (from the eye's upper left), both sides lit alike.
+fn lambert(normal: &Vector3<f64>, to_eye: &Vector3<f64>, light: &Vector3<f64>) -> f64 {
+    let n = if normal.dot(to_eye) < 0.0 {
+        -normal
+    } else {
+        *normal
+    };
+    0.25 + 0.75 * n.dot(light).max(0.0)
+}
+
+/// Project and shade every triangle of `meshes` for a `width × height` viewport. Triangles with
+/// a vertex behind the near plane, non-finite or zero-area ones are left out.
+pub fn shade(
+    meshes: &[DrawMesh],
+    camera: &OrbitCamera,
+    width: f64,
+    height: f64,
+) -> Vec<ShadedTriangle> {
+    let proj = camera.projector(width, height);
+    let light = (proj.up * 0.7 - proj.right * 0.35 - proj.forward * 0.6).normalize();
+    let mut out = Vec::new();
+    for mesh in meshes {
+        let screen: Vec<Option<ScreenPoint>> =
+            mesh.positions.iter().map(|p| proj.project(p)).collect();
+        for t in &mesh.triangles {
+            let idx = t.map(|i| i as usize);
+            if idx.iter().any(|&i| i >= mesh.positions.len()) {
+                continue;
+            }
+            let (Some(a), Some(b), Some(c)) = (screen[idx[0]], screen[idx[1]], screen[idx[2]])
+            else {
+                continue;
+            };
+            let [pa, pb, pc] = idx.map(|i| mesh.positions[i]);
+            let normal = (pb - pa).cross(&(pc - pa));
+            let len = normal.norm();
+            if !(len > 0.0 && len.is_finite()) {
+                continue;
+            }
+            let centre = (pa + pb + pc) / 3.0;
+            let k = lambert(&(normal / len), &(proj.eye - centre), &light);
+            let colour = mesh
+                .colour
+                .map(|c| (c as f64 * k).round().clamp(0.0, 255.0) as u8);
+            out.push(ShadedTriangle {
+                points: [a, b, c],
+                colour,
+            });
+        }
+    }
+    out
+}
+
+/// An 8-bit RGBA image, rows top to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<u8>,
+}
+
+impl Image {
+    pub fn filled(width: u32, height: u32, rgb: [u8; 3]) -> Image {
+        let mut rgba = Vec::with_capacity(width as usize * height as usize * 4);
+        for _ in 0..width as usize * height as usize {
+            rgba.extend_from_slice(&[rgb[0], rgb[1], rgb[2], 255]);
+        }
+        Image {
+            width,
+            height,
+            rgba,
+        }
+    }
+
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = (y as usize * self.width as usize + x as usize) * 4;
+        [
+            self.rgba[i],
+            self.rgba[i + 1],
+            self.rgba[i + 2],
+            self.rgba[i + 3],
+        ]
+    }
+
+    /// Encode as a PNG file's bytes.
+    pub fn to_png(&self) -> Result<Vec<u8>, png::EncodingError> {
+        let mut bytes = Vec::new();
+        {
+            let mut encoder = png::Encoder::new(&mut bytes, self.width, self.height);
+            encoder.set_color(png::ColorType::Rgba);
+            encoder.set_depth(png::BitDepth::Eight);
+            let mut writer = encoder.write_header()?;
+            writer.write_image_data(&self.rgba)?;
+        }
+        Ok(bytes)
+    }
+}
+
+/// Supersampling factor per axis.
+const SSAA: u32 = 2;
+
+/// Render `meshes` seen by `camera` into a `width × height` image on `BACKGROUND`.
+pub fn render(meshes: &[DrawMesh], camera: &OrbitCamera, width: u32, height: u32) -> Image {
+    let (w, h) = (width * SSAA, height * SSAA);
+    let tris = shade(meshes, camera, w as f64, h as f64);
+    let mut depth = vec![f64::INFINITY; w as usize * h as usize];
+    let mut colour = vec![BACKGROUND; w as usize * h as usize];
+    for t in &tris {
+        fill_triangle(t, w, h, &mut depth, &mut colour);
+    }
+    // Box filter down to the output size.
+    let mut out = Image::filled(width, height, BACKGROUND);
+    let n = SSAA * SSAA;
+    for y in 0..height {
+        for x in 0..width {
+            let mut sum = [0u32; 3];
+            for sy in 0..SSAA {
+                for sx in 0..SSAA {
+                    let c = colour[((y * SSAA + sy) * w + x * SSAA + sx) as usize];
+                    for (s, &v) in sum.iter_mut().zip(&c) {
+                        *s += v as u32;
+                    }
+                }
+            }
+            let i = ((y * width + x) * 4) as usize;
+            for (o, s) in out.rgba[i..i + 3].iter_mut().zip(sum) {
+                *o = ((s + n / 2) / n) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// Scan-convert one triangle with a z-buffer: pixel centres inside the edge functions (top-left
+/// rule not needed for opaque flat colours), depth interpolated as 1/z linear in screen space.
+fn fill_triangle(t: &ShadedTriangle, w: u32, h: u32, depth: &mut [f64], colour: &mut [[u8; 3]]) {
+    let [a, b, c] = t.points;
+    let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if area.abs() < 1e-12 || !area.is_finite() {
+        return;
+    }
+    let min_x = a.x.min(b.x).min(c.x).floor().max(0.0) as i64;
+    let max_x = (a.x.max(b.x).max(c.x).ceil() as i64).min(w as i64 - 1);
+    let min_y = a.y.min(b.y).min(c.y).floor().max(0.0) as i64;
+    let max_y = (a.y.max(b.y).max(c.y).ceil() as i64).min(h as i64 - 1);
+    if min_x > max_x || min_y > max_y {
+        return;
+    }
+    let inv = [1.0 / a.depth, 1.0 / b.depth, 1.0 / c.depth];
+    let edge = |p: &ScreenPoint, q: &ScreenPoint, x: f64, y: f64| {
+        (q.x - p.x) * (y - p.y) - (q.y - p.y) * (x - p.x)
+    };
+    for y in min_y..=max_y {
+        let py = y as f64 + 0.5;
+        for x in min_x..=max_x {
+            let px = x as f64 + 0.5;
+            let w0 = edge(&b, &c, px, py) / area;
+            let w1 = edge(&c, &a, px, py) / area;
+            let w2 = edge(&a, &b, px, py) / area;
+            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                continue;
+            }
+            let z = 1.0 / (w0 * inv[0] + w1 * inv[1] + w2 * inv[2]);
+            let i = (y as u32 * w + x as u32) as usize;
+            if z < depth[i] {
+                depth[i] = z;
+                colour[i] = t.colour;
+            }
+        }
+    }
+}
+
+/// A closed triangle mesh of a capsule: `segments` around the axis, `rings` per hemispherical
+/// cap (the cylinder is the band between the caps' equators).
+pub fn capsule_mesh(capsule: &Capsule, segments: u32, rings: u32, colour: [u8; 3]) -> DrawMesh {
+    let axis = capsule.axis.normalize();
+    let u = capsule.fallback_normal();
+    let v = axis.cross(&u);
+    let (e0, e1) = capsule.endpoints();
+    let r = capsule.radius;
+    let segments = segments.max(3);
+    let rings = rings.max(1);
+    let mut positions = Vec::new();
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    for (centre, from) in [(e0, -half_pi), (e1, 0.0)] {
+        for k in 0..=rings {
+            let phi = from + half_pi * k as f64 / rings as f64;
+            for s in 0..segments {
+                let theta = std::f64::consts::TAU * s as f64 / segments as f64;
+                let radial = u * theta.cos() + v * theta.sin();
+                positions.push(centre + axis * (r * phi.sin()) + radial * (r * phi.cos()));
+            }
+        }
+    }
+    let rows = 2 * (rings + 1);
+    let mut triangles = Vec::new();
+    for row in 0..rows - 1 {
+        for s in 0..segments {
+            let a = row * segments + s;
+            let b = row * segments + (s + 1) % segments;
+            let c = a + segments;
+            let d = b + segments;
+            triangles.push([a, b, d]);
+            triangles.push([a, d, c]);
+        }
+    }
+    DrawMesh {
+        positions,
+        triangles,
+        colour,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(z: f64, colour: [u8; 3]) -> DrawMesh {
+        DrawMesh {
+            positions: vec![
+                Vector3::new(-0.5, -0.5, z),
+                Vector3::new(0.5, -0.5, z),
+                Vector3::new(0.5, 0.5, z),
+                Vector3::new(-0.5, 0.5, z),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            colour,
+        }
+    }
+
+    fn front_camera() -> OrbitCamera {
+        let mut cam = OrbitCamera::new(Vector3::zeros(), Vector3::y(), 3.0);
+        // Eye on +Z looking down -Z.
+        cam.yaw_deg = -90.0;
+        cam.pitch_deg = 0.0;
+        cam
+    }
+
+    #[test]
+    fn a_facing_quad_covers_the_centre_and_leaves_the_corners_alone() {
+        let cam = front_camera();
+        assert!(
+            (cam.eye() - Vector3::new(0.0, 0.0, 3.0)).norm() < 1e-9,
+            "{:?}",
+            cam.eye()
+        );
+        let img = render(&[quad(0.0, [200, 200, 200])], &cam, 64, 48);
+        assert_eq!(img.rgba.len(), 64 * 48 * 4);
+        let bg = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 255];
+        for (x, y) in [(0, 0), (63, 0), (0, 47), (63, 47)] {
+            assert_eq!(img.pixel(x, y), bg);
+        }
+        let centre = img.pixel(32, 24);
+        assert_ne!(centre, bg);
+        assert!(centre[0] > 100, "lit: {centre:?}");
+        // Quad half-width 0.5 m at 3 m with fov 40°: 0.5 / 3 × focal(48) = 10.9 px.
+        let focal = cam.focal_px(48.0);
+        let half = 0.5 / 3.0 * focal;
+        assert_eq!(img.pixel((32.0 + half - 1.5) as u32, 24), centre);
+        assert_eq!(img.pixel((32.0 + half + 1.5) as u32, 24), bg);
+    }
+
+    #[test]
+    fn the_nearer_surface_wins_whatever_the_draw_order() {
+        let cam = front_camera();
+        let near = quad(0.5, [250, 0, 0]);
+        let far = quad(0.0, [0, 250, 0]);
+        for order in [[near.clone(), far.clone()], [far, near]] {
+            let img = render(&order, &cam, 32, 32);
+            let c = img.pixel(16, 16);
+            assert!(c[0] > 0 && c[1] == 0, "red in front: {c:?}");
+        }
+    }
+
+    #[test]
+    fn lambert_is_two_sided_and_brightest_facing_the_light() {
+        let light = Vector3::new(0.0, 0.0, 1.0);
+        let eye = Vector3::new(0.0, 0.0, 1.0);
+        assert!((lambert(&Vector3::z(), &eye, &light) - 1.0).abs() < 1e-12);
+        assert!((lambert(&-Vector3::z(), &eye, &light) - 1.0).abs() < 1e-12);
+        assert!((lambert(&Vector3::x(), &eye, &light) - 0.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn png_round_trips_size_and_pixels() {
+        let mut img = Image::filled(5, 3, [1, 2, 3]);
+        img.rgba[4..8].copy_from_slice(&[9, 8, 7, 255]);
+        let bytes = img.to_png().unwrap();
+        let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (5, 3));
+        assert_eq!(&buf[..info.buffer_size()], &img.rgba[..]);
+    }
+
+    #[test]
+    fn capsule_mesh_is_within_its_radius_of_the_axis() {
+        let cap = Capsule {
+            centre: Vector3::new(0.0, 1.0, 0.0),
+            axis: Vector3::x(),
+            length: 0.6,
+            radius: 0.1,
+            velocity: Vector3::zeros(),
+            friction: 0.0,
+        };
+        let m = capsule_mesh(&cap, 12, 4, CAPSULE_COLOUR);
+        for p in &m.positions {
+            let d = (p - cap.closest_point(p)).norm();
+            assert!((d - 0.1).abs() < 1e-9, "{p:?} at {d}");
+        }
+        let (lo, hi) = m.bounds().unwrap();
+        assert!((lo.x + 0.4).abs() < 1e-9 && (hi.x - 0.4).abs() < 1e-9);
+        assert_eq!(m.triangles.len(), 2 * 12 * (2 * 5 - 1));
+    }
+}

@@ -1,0 +1,408 @@
+//! What the viewer shows: a scene file or a bare mesh prepared through the pipeline and
+//! simulated frame by frame ([`Simulation`]), or a baked glTF with morph-target frames played
+//! back ([`BakedPlayback`]: frame N applies the weights of the N-th key of the file's `weights`
+//! animation to the morph targets). A glTF without morph targets is a mesh to simulate. A
+//! lattice-skin glTF is drawn in its rest pose (skinning is not evaluated).
+
+use crate::raster::{capsule_mesh, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR};
+use crate::ViewerError;
+use serde_json::Value;
+use springbake_core::display::UpAxis;
+use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::plugin::{ImportSettings, Importer, PluginError, Registry};
+use springbake_core::solver::Capsule;
+use springbake_importers::gltf::accessor::read_floats;
+use springbake_importers::gltf::document::{get_usize, load_document, GltfDocument};
+use springbake_importers::gltf::GltfImporter;
+use springbake_pipeline::{LoadedScene, MeshOverrides, Prepared, Seconds};
+use std::path::Path;
+
+/// A prepared world stepped one output frame at a time.
+pub struct Simulation {
+    pub loaded: LoadedScene,
+    pub prepared: Prepared,
+    /// Triangles of each body's display mesh (indices into its vertex positions).
+    pub triangles: Vec<Vec<[u32; 3]>>,
+    /// 1-based output frame the world is at (1 = the initial state).
+    pub frame: usize,
+}
+
+impl Simulation {
+    /// Import, fit and build the world for `loaded`.
+    pub fn new(registry: &Registry, loaded: LoadedScene) -> Result<Simulation, ViewerError> {
+        let prepared = springbake_pipeline::prepare(registry, &loaded, &mut Seconds::default())?;
+        let triangles = prepared
+            .bodies
+            .iter()
+            .map(|b| prepared.export_scene.meshes[b.mesh_index].triangles())
+            .collect();
+        Ok(Simulation {
+            loaded,
+            prepared,
+            triangles,
+            frame: 1,
+        })
+    }
+
+    pub fn fps(&self) -> f64 {
+        self.loaded.scene.output.fps
+    }
+
+    /// Step forward to output frame `frame` (no-op when already there or past it).
+    pub fn advance_to(&mut self, frame: usize) -> Result<(), ViewerError> {
+        let dt = 1.0 / self.fps();
+        while self.frame < frame {
+            self.frame += 1;
+            self.prepared
+                .world
+                .advance_frame(dt, self.frame, &|| false)?;
+        }
+        Ok(())
+    }
+
+    /// The bodies' display meshes now, in simulation metres.
+    pub fn body_meshes(&self) -> Vec<DrawMesh> {
+        (0..self.prepared.bodies.len())
+            .map(|b| DrawMesh {
+                positions: self
+                    .prepared
+                    .vertex_positions(b)
+                    .iter()
+                    .map(|p| p.coords)
+                    .collect(),
+                triangles: self.triangles[b].clone(),
+                colour: BODY_COLOUR,
+            })
+            .collect()
+    }
+
+    /// Scripted manipulators at the world's time, then the live capsules.
+    pub fn capsules(&self) -> Vec<Capsule> {
+        let w = &self.prepared.world;
+        w.manipulators
+            .iter()
+            .map(|m| m.capsule_at(w.time))
+            .chain(w.live_capsules.iter().copied())
+            .collect()
+    }
+
+    /// Bodies and capsules.
+    pub fn meshes(&self) -> Vec<DrawMesh> {
+        let mut out = self.body_meshes();
+        out.extend(
+            self.capsules()
+                .iter()
+                .map(|c| capsule_mesh(c, 24, 6, CAPSULE_COLOUR)),
+        );
+        out
+    }
+
+    pub fn up(&self) -> Vector3<f64> {
+        self.prepared.frame.up_vector()
+    }
+}
+
+/// One mesh of a baked glTF: rest positions and morph deltas in its local frame.
+#[derive(Debug, Clone)]
+pub struct BakedMeshData {
+    pub world_from_local: springbake_core::nalgebra::Matrix4<f64>,
+    pub rest: Vec<[f32; 3]>,
+    /// Per morph target, one delta per vertex (empty when the mesh is not morphed).
+    pub deltas: Vec<Vec<[f32; 3]>>,
+    /// Weights per frame (one per target), from the node's `weights` animation channel.
+    pub frame_weights: Vec<Vec<f32>>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// A baked glTF's frames.
+#[derive(Debug, Clone)]
+pub struct BakedPlayback {
+    pub meshes: Vec<BakedMeshData>,
+    pub frame_count: usize,
+    /// Frames per second from the animation's key times (24 when it has a single key).
+    pub fps: f64,
+}
+
+impl BakedPlayback {
+    /// Vertex positions (world frame of the file, Y-up metres) at 1-based `frame`, clamped to
+    /// the frames there are.
+    pub fn meshes_at(&self, frame: usize) -> Vec<DrawMesh> {
+        self.meshes
+            .iter()
+            .map(|m| {
+                let weights = if m.frame_weights.is_empty() {
+                    None
+                } else {
+                    m.frame_weights
+                        .get(frame.clamp(1, m.frame_weights.len()) - 1)
+                };
+                let positions = m
+                    .rest
+                    .iter()
+                    .enumerate()
+                    .map(|(v, r)| {
+                        let mut p = Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64);
+                        if let Some(w) = weights {
+                            for (t, &wt) in w.iter().enumerate() {
+                                if wt != 0.0 {
+                                    if let Some(d) = m.deltas.get(t).and_then(|d| d.get(v)) {
+                                        p += Vector3::new(d[0] as f64, d[1] as f64, d[2] as f64)
+                                            * wt as f64;
+                                    }
+                                }
+                            }
+                        }
+                        m.world_from_local.transform_point(&Point3::from(p)).coords
+                    })
+                    .collect();
+                DrawMesh {
+                    positions,
+                    triangles: m.triangles.clone(),
+                    colour: BODY_COLOUR,
+                }
+            })
+            .collect()
+    }
+}
+
+/// What a file opens as.
+pub enum ViewSource {
+    Simulated(Box<Simulation>),
+    Baked(BakedPlayback),
+}
+
+impl ViewSource {
+    /// Open `path`: a `.toml` scene, a baked glTF (one with morph targets and a weights
+    /// animation), or any mesh the registry imports (simulated with the default scene).
+    pub fn open(registry: &Registry, path: &Path) -> Result<ViewSource, ViewerError> {
+        if !path.exists() {
+            return Err(ViewerError::Usage(format!(
+                "{}: no such file",
+                path.display()
+            )));
+        }
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        if ext == "toml" {
+            let loaded = springbake_pipeline::load_scene(path)?;
+            return Ok(ViewSource::Simulated(Box::new(Simulation::new(
+                registry, loaded,
+            )?)));
+        }
+        if ext == "glb" || ext == "gltf" {
+            let bytes = std::fs::read(path).map_err(|e| ViewerError::Io {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            })?;
+            if let Some(baked) = read_baked_gltf(path, &bytes)? {
+                return Ok(ViewSource::Baked(baked));
+            }
+        }
+        let loaded = springbake_pipeline::default_scene_for_mesh(path, &MeshOverrides::default());
+        springbake_pipeline::validate_scene(&loaded.scene).map_err(ViewerError::Usage)?;
+        Ok(ViewSource::Simulated(Box::new(Simulation::new(
+            registry, loaded,
+        )?)))
+    }
+
+    /// Up vector of what is drawn.
+    pub fn up(&self) -> Vector3<f64> {
+        match self {
+            ViewSource::Simulated(s) => s.up(),
+            ViewSource::Baked(_) => UpAxis::Y.vector(),
+        }
+    }
+
+    pub fn fps(&self) -> f64 {
+        match self {
+            ViewSource::Simulated(s) => s.fps(),
+            ViewSource::Baked(b) => b.fps,
+        }
+    }
+
+    /// Number of frames the source plays (the scene's `output.frames` for a simulation).
+    pub fn frame_count(&self) -> usize {
+        match self {
+            ViewSource::Simulated(s) => s.loaded.scene.output.frames,
+            ViewSource::Baked(b) => b.frame_count,
+        }
+    }
+
+    /// Everything to draw at 1-based `frame` (a simulation steps forward to it).
+    pub fn meshes_at(&mut self, frame: usize) -> Result<Vec<DrawMesh>, ViewerError> {
+        match self {
+            ViewSource::Simulated(s) => {
+                s.advance_to(frame)?;
+                Ok(s.meshes())
+            }
+            ViewSource::Baked(b) => Ok(b.meshes_at(frame)),
+        }
+    }
+}
+
+/// A `weights` animation channel: target node, key times, flat weights (targets per key).
+type WeightsChannel = (usize, Vec<f32>, Vec<f32>);
+
+fn weights_channels(doc: &GltfDocument) -> Result<Vec<WeightsChannel>, PluginError> {
+    let mut out = Vec::new();
+    for (a, anim) in doc.array("animations").iter().enumerate() {
+        let samplers = anim
+            .get("samplers")
+            .and_then(Value::as_array)
+            .map(Vec::as_slice)
+            .unwrap_or(&[]);
+        for (c, ch) in anim
+            .get("channels")
+            .and_then(Value::as_array)
+            .map(Vec::as_slice)
+            .unwrap_or(&[])
+            .iter()
+            .enumerate()
+        {
+            let target = ch.get("target");
+            if target.and_then(|t| t.get("path")).and_then(Value::as_str) != Some("weights") {
+                continue;
+            }
+            let (Some(node), Some(sampler)) = (
+                target.and_then(|t| get_usize(t, "node")),
+                get_usize(ch, "sampler"),
+            ) else {
+                continue;
+            };
+            let location = format!("animations[{a}].channels[{c}]");
+            let s = samplers.get(sampler).ok_or_else(|| {
+                doc.error(
+                    &location,
+                    format!("refers to sampler {sampler}, which does not exist"),
+                )
+            })?;
+            let (Some(input), Some(output)) = (get_usize(s, "input"), get_usize(s, "output"))
+            else {
+                return Err(doc.error(
+                    format!("animations[{a}].samplers[{sampler}]"),
+                    "needs input and output",
+                ));
+            };
+            let (times, _) = read_floats(doc, input, &location)?;
+            let (weights, _) = read_floats(doc, output, &location)?;
+            out.push((node, times, weights));
+        }
+    }
+    Ok(out)
+}
+
+/// A baked glTF's meshes and frames, or `None` when the file has no morph targets (a plain mesh).
+pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback>, ViewerError> {
+    let doc = load_document(path, bytes)?;
+    let has_targets = doc.array("meshes").iter().any(|m| {
+        m.get("primitives")
+            .and_then(Value::as_array)
+            .is_some_and(|ps| ps.iter().any(|p| p.get("targets").is_some()))
+    });
+    if !has_targets {
+        return Ok(None);
+    }
+    let scene = GltfImporter.import(path, bytes, &ImportSettings::default())?;
+    let channels = weights_channels(&doc)?;
+    let mut meshes = Vec::new();
+    let mut frame_count = 1;
+    let mut fps = 24.0;
+    for mesh in &scene.meshes {
+        let triangles = mesh.triangles();
+        let rest: Vec<[f32; 3]> = mesh
+            .primitives
+            .iter()
+            .flat_map(|p| p.positions.iter().copied())
+            .collect();
+        let node = mesh
+            .source_key
+            .strip_prefix("node:")
+            .and_then(|n| n.parse::<usize>().ok());
+        let gltf_mesh = node
+            .and_then(|n| doc.array("nodes").get(n))
+            .and_then(|n| get_usize(n, "mesh"));
+        let mut deltas: Vec<Vec<[f32; 3]>> = Vec::new();
+        let mut frame_weights = Vec::new();
+        if let Some(mi) = gltf_mesh {
+            let prims = doc.array("meshes")[mi]
+                .get("primitives")
+                .and_then(Value::as_array)
+                .cloned()
+                .unwrap_or_default();
+            // Deltas per target, primitives concatenated in the importer's order; used only when
+            // every primitive's vertex count matches what the importer produced.
+            let counts_match = prims.len() == mesh.primitives.len()
+                && prims.iter().zip(&mesh.primitives).all(|(p, ip)| {
+                    p.get("attributes")
+                        .and_then(|a| get_usize(a, "POSITION"))
+                        .and_then(|acc| doc.array("accessors").get(acc))
+                        .and_then(|a| get_usize(a, "count"))
+                        == Some(ip.positions.len())
+                });
+            if counts_match {
+                let targets = prims
+                    .first()
+                    .and_then(|p| p.get("targets"))
+                    .and_then(Value::as_array)
+                    .map_or(0, Vec::len);
+                for t in 0..targets {
+                    let mut delta = Vec::with_capacity(rest.len());
+                    for (pi, (p, ip)) in prims.iter().zip(&mesh.primitives).enumerate() {
+                        let location =
+                            format!("meshes[{mi}].primitives[{pi}].targets[{t}].POSITION");
+                        match p
+                            .get("targets")
+                            .and_then(|ts| ts.get(t))
+                            .and_then(|tg| get_usize(tg, "POSITION"))
+                        {
+                            Some(acc) => {
+                                let (flat, comps) = read_floats(&doc, acc, &location)?;
+                                if comps != 3 || flat.len() != ip.positions.len() * 3 {
+                                    return Err(doc.error(location, "morph target POSITION must be VEC3 with one delta per vertex").into());
+                                }
+                                delta.extend(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                            }
+                            None => {
+                                delta.extend(std::iter::repeat_n([0.0f32; 3], ip.positions.len()))
+                            }
+                        }
+                    }
+                    deltas.push(delta);
+                }
+                if let Some((_, times, weights)) =
+                    channels.iter().find(|(n, _, _)| Some(*n) == node)
+                {
+                    if targets > 0 && !times.is_empty() && weights.len() >= times.len() * targets {
+                        frame_weights = weights
+                            .chunks_exact(targets)
+                            .take(times.len())
+                            .map(<[f32]>::to_vec)
+                            .collect();
+                        frame_count = frame_count.max(times.len());
+                        if times.len() > 1 {
+                            let span = (times[times.len() - 1] - times[0]) as f64;
+                            if span > 0.0 {
+                                fps = ((times.len() - 1) as f64 / span * 1000.0).round() / 1000.0;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        meshes.push(BakedMeshData {
+            world_from_local: mesh.world_from_local,
+            rest,
+            deltas,
+            frame_weights,
+            triangles,
+        });
+    }
+    Ok(Some(BakedPlayback {
+        meshes,
+        frame_count,
+        fps,
+    }))
+}

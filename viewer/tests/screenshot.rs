@@ -1,0 +1,236 @@
+//! `render_screenshot` end to end: a scene with a falling cube renders to a PNG of the asked
+//! size, the object's pixels differ from the background and the corners do not, the cube moves
+//! down the picture as it falls, and a baked glb's frame N (morph weights applied) matches the
+//! simulation's frame N. Also the live-reload watcher and the argument errors.
+
+#![allow(clippy::unwrap_used)]
+
+use springbake_viewer::raster::BACKGROUND;
+use springbake_viewer::{render_screenshot, ScreenshotArgs, ViewerError};
+use std::path::Path;
+
+const CUBE_OBJ: &str = "o Cube
+v -0.25 -0.25 -0.25
+v  0.25 -0.25 -0.25
+v -0.25  0.25 -0.25
+v  0.25  0.25 -0.25
+v -0.25 -0.25  0.25
+v  0.25 -0.25  0.25
+v -0.25  0.25  0.25
+v  0.25  0.25  0.25
+f 1 3 4 2
+f 5 6 8 7
+f 1 2 6 5
+f 3 7 8 4
+f 1 5 7 3
+f 2 4 8 6
+";
+
+/// A 0.5 m rubber cube whose bottom is 0.55 m above the floor, 6 cells, no manipulator.
+fn write_scene(dir: &Path, output: &str) -> std::path::PathBuf {
+    std::fs::write(dir.join("cube.obj"), CUBE_OBJ).unwrap();
+    let scene = format!(
+        "[output]\npath = \"{output}\"\nfps = 24\nframes = 12\n\n[world]\nfloor = 0.0\n\n\
+         [[body]]\nsource = \"cube.obj\"\ncells = 6\nmaterial = \"rubber\"\noffset = [0.0, 0.8, 0.0]\n"
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, scene).unwrap();
+    path
+}
+
+struct Decoded {
+    width: u32,
+    height: u32,
+    rgba: Vec<u8>,
+}
+
+impl Decoded {
+    fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = ((y * self.width + x) * 4) as usize;
+        [
+            self.rgba[i],
+            self.rgba[i + 1],
+            self.rgba[i + 2],
+            self.rgba[i + 3],
+        ]
+    }
+
+    /// Pixels that are not the background: count and mean row.
+    fn object(&self) -> (usize, f64) {
+        let bg = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 255];
+        let (mut n, mut rows) = (0usize, 0.0);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if self.pixel(x, y) != bg {
+                    n += 1;
+                    rows += y as f64;
+                }
+            }
+        }
+        (n, if n > 0 { rows / n as f64 } else { f64::NAN })
+    }
+}
+
+fn decode(path: &Path) -> Decoded {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    buf.truncate(info.buffer_size());
+    Decoded {
+        width: info.width,
+        height: info.height,
+        rgba: buf,
+    }
+}
+
+fn shot(input: &Path, output: &Path, frame: usize) -> Decoded {
+    let args = ScreenshotArgs {
+        input: input.to_path_buf(),
+        frame,
+        output: output.to_path_buf(),
+        width: 160,
+        height: 120,
+    };
+    render_screenshot(&args).unwrap();
+    decode(output)
+}
+
+#[test]
+fn scene_screenshot_has_the_object_on_a_clean_background_and_falls() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    let first = shot(&scene, &dir.path().join("shots/f1.png"), 1);
+    assert_eq!((first.width, first.height), (160, 120));
+    let bg = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 255];
+    for (x, y) in [(0, 0), (159, 0), (0, 119), (159, 119)] {
+        assert_eq!(first.pixel(x, y), bg, "corner ({x}, {y}) is background");
+    }
+    let centre = first.pixel(80, 60);
+    assert_ne!(centre, bg, "the cube is in the middle of the frame");
+    let (n1, row1) = first.object();
+    // The framing puts the bounding sphere in 1/1.2 of the height: the cube covers a real area,
+    // but not the whole picture.
+    assert!(n1 > 1500 && n1 < 160 * 120 / 2, "object pixels: {n1}");
+    assert!((row1 - 60.0).abs() < 10.0, "centred vertically: {row1}");
+
+    // Frame 8 (t = 0.29 s): free fall of about 0.41 m, not yet on the floor (0.55 m below).
+    let falling = shot(&scene, &dir.path().join("f8.png"), 8);
+    let (n8, row8) = falling.object();
+    assert!(n8 > 1000, "still visible: {n8}");
+    assert!(
+        row8 > row1 + 15.0,
+        "the cube moved down the picture: row {row1:.1} -> {row8:.1}"
+    );
+    for (x, y) in [(0, 0), (159, 0), (0, 119), (159, 119)] {
+        assert_eq!(falling.pixel(x, y), bg);
+    }
+    // Deterministic: the same frame renders the same bytes.
+    let again = shot(&scene, &dir.path().join("f8b.png"), 8);
+    assert_eq!(again.rgba, falling.rgba);
+}
+
+#[test]
+fn baked_glb_frames_play_back_their_morph_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    let registry = springbake_pipeline::default_registry();
+    let loaded = springbake_pipeline::load_scene(&scene).unwrap();
+    springbake_pipeline::bake(&registry, &loaded, &mut Default::default()).unwrap();
+    let glb = dir.path().join("baked.glb");
+    assert!(glb.exists());
+
+    let sim = shot(&scene, &dir.path().join("sim8.png"), 8);
+    let baked = shot(&glb, &dir.path().join("baked8.png"), 8);
+    let rest = shot(&glb, &dir.path().join("baked1.png"), 1);
+    let differing = |a: &Decoded, b: &Decoded| {
+        a.rgba
+            .chunks(4)
+            .zip(b.rgba.chunks(4))
+            .filter(|(p, q)| p != q)
+            .count()
+    };
+    // f32 morph deltas against f64 positions: at most a few edge pixels differ.
+    assert!(
+        differing(&sim, &baked) < 40,
+        "baked frame 8 matches the simulation: {} pixels differ",
+        differing(&sim, &baked)
+    );
+    assert!(
+        differing(&rest, &baked) > 500,
+        "frame 1 and frame 8 differ: {}",
+        differing(&rest, &baked)
+    );
+    let err = render_screenshot(&ScreenshotArgs {
+        frame: 13,
+        ..ScreenshotArgs::new(&glb, dir.path().join("x.png"))
+    })
+    .unwrap_err();
+    assert!(
+        err.is_user_error() && err.to_string().contains("the file has 12 frames"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_arguments_are_user_errors_that_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    let out = dir.path().join("never.png");
+    let cases = [
+        ScreenshotArgs {
+            input: dir.path().join("missing.toml"),
+            ..ScreenshotArgs::new(&scene, &out)
+        },
+        ScreenshotArgs {
+            frame: 0,
+            ..ScreenshotArgs::new(&scene, &out)
+        },
+        ScreenshotArgs {
+            width: 0,
+            ..ScreenshotArgs::new(&scene, &out)
+        },
+        ScreenshotArgs {
+            height: 100_000,
+            ..ScreenshotArgs::new(&scene, &out)
+        },
+    ];
+    for args in cases {
+        let err = render_screenshot(&args).unwrap_err();
+        assert!(
+            matches!(err, ViewerError::Usage(_)) && err.is_user_error(),
+            "{err}"
+        );
+    }
+    std::fs::write(dir.path().join("broken.toml"), "[output]\nfps = \"fast\"\n").unwrap();
+    let err =
+        render_screenshot(&ScreenshotArgs::new(dir.path().join("broken.toml"), &out)).unwrap_err();
+    assert!(
+        err.is_user_error() && err.to_string().contains("broken.toml"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn reloader_signals_when_a_watched_source_changes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    let watched = springbake_viewer::reload::watched_inputs(&scene);
+    assert_eq!(watched.len(), 2, "{watched:?}");
+    assert!(watched.iter().any(|p| p.ends_with("cube.obj")));
+    let reloader = springbake_viewer::reload::Reloader::start(&scene, Box::new(|| {}));
+    // No run at start.
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    assert!(!reloader.changed());
+    std::fs::write(dir.path().join("cube.obj"), CUBE_OBJ.replace("0.25", "0.3")).unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !reloader.changed() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no reload signal within 10 s of editing the source"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
