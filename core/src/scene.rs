@@ -222,9 +222,15 @@ pub struct BodySection {
     /// Initial velocity, m/s, world frame.
     #[serde(default)]
     pub velocity: [f64; 3],
-    /// Spring arrangement (physics §2).
-    #[serde(default)]
+    /// Spring arrangement (physics §2). Scenes default to `both` (edges, face and body
+    /// diagonals): the single-face-diagonal lattice of Miyazaki's Table 1 is weak in shear and
+    /// folds cells even on an ordinary drop.
+    #[serde(default = "default_springs")]
     pub springs: crate::lattice::SpringLayout,
+}
+
+fn default_springs() -> crate::lattice::SpringLayout {
+    crate::lattice::SpringLayout::Both
 }
 
 pub const DEFAULT_CELLS: u32 = 10;

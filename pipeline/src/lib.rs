@@ -217,7 +217,7 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
             .unwrap_or_default(),
         offset: [0.0; 3],
         velocity: [0.0; 3],
-        springs: Default::default(),
+        springs: springbake_core::lattice::SpringLayout::Both,
     });
     LoadedScene {
         scene,
