@@ -1,0 +1,184 @@
+//! The `springbake` binary as a user runs it: exit codes, messages, the corpus, atomic output.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn springbake(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args(args)
+        .output()
+        .expect("run springbake")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn corpus(rel: &str) -> PathBuf {
+    springbake_testkit::corpus_dir().join(rel)
+}
+
+#[test]
+fn demo_bakes_a_valid_gltf_with_a_manipulator_hit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo.glb");
+    let report = dir.path().join("report.json");
+    let o = springbake(&[
+        "demo",
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    springbake_testkit::assert_gltf_valid(&out);
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let frames = r["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 72);
+    assert_eq!(frames[0]["frame"], 1);
+    assert_eq!(frames[0]["time"], 0.0);
+    assert!(frames.iter().all(|f| f["inverted_cells"] == 0));
+    let max_reaction = frames
+        .iter()
+        .map(|f| {
+            f["manipulator_reaction"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap().powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        max_reaction > 1.0,
+        "the manipulator must hit the ball: max reaction {max_reaction} N"
+    );
+    assert!(r["bodies"][0]["nodes"].as_u64().unwrap() > 100);
+    for key in ["import", "fit", "simulate", "export"] {
+        assert!(r["seconds"][key].as_f64().is_some());
+    }
+}
+
+#[test]
+fn every_corpus_file_imports_or_fails_with_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    for e in springbake_testkit::corpus_entries(&["gltf", "glb", "obj", "usda", "usdc", "usdz"]) {
+        let file = e.path.to_str().unwrap();
+        let o = springbake(&["inspect", file]);
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{file}: {err}");
+        if e.expect_ok {
+            assert!(
+                o.status.success(),
+                "{file} ({}) should import: {err}",
+                e.why
+            );
+        } else {
+            assert_eq!(o.status.code(), Some(2), "{file} ({}): {err}", e.why);
+            assert!(
+                err.contains("error:") && err.len() > 20,
+                "{file}: unclear message: {err}"
+            );
+            // The bake refuses it too and writes nothing.
+            let out = dir.path().join("never.glb");
+            let b = springbake(&["bake", file, "-o", out.to_str().unwrap(), "--frames", "2"]);
+            assert_eq!(b.status.code(), Some(2), "{file}: {}", stderr(&b));
+            assert!(!out.exists(), "{file}: output written for a rejected input");
+        }
+    }
+}
+
+#[test]
+fn a_failed_bake_leaves_the_previous_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.glb");
+    std::fs::write(&out, b"previous bake").unwrap();
+    let o = springbake(&[
+        "bake",
+        corpus("bad/nan_position.gltf").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous bake");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(leftovers.len(), 1, "no temporary files left behind");
+}
+
+#[test]
+fn scene_errors_name_the_file_line_and_valid_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, "[output]\nframes = 4\n[world]\nflor = 0.0\n").unwrap();
+    let o = springbake(&["bake", scene.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("scene.toml") && err.contains("line 4") && err.contains("floor"),
+        "{err}"
+    );
+
+    std::fs::write(&scene, "[[body]]\nsource = \"missing.glb\"\n").unwrap();
+    let o = springbake(&["bake", scene.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains(&dir.path().join("missing.glb").display().to_string()),
+        "names the path tried: {err}"
+    );
+}
+
+#[test]
+fn a_scene_file_bakes_to_point_caches() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    let src = corpus("blender/two_objects.obj");
+    std::fs::write(
+        &scene,
+        format!("[output]\npath = \"out.pc2\"\nframes = 6\n[world]\nfloor = -2.0\n[[body]]\nsource = {:?}\ncells = 6\nmaterial = \"jelly\"\n", src.display().to_string()),
+    )
+    .unwrap();
+    let o = springbake(&["bake", scene.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in ["out_Body.pc2", "out_Head.pc2"] {
+        let bytes = std::fs::read(dir.path().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(&bytes[..12], b"POINTCACHE2\0");
+        let samples = i32::from_le_bytes(bytes[28..32].try_into().unwrap());
+        assert_eq!(samples, 6);
+    }
+}
+
+#[test]
+fn plugins_lists_every_format() {
+    let o = springbake(&["plugins"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    for ext in ["glb", "gltf", "obj", "usda", "usdc", "usdz", "pc2", "mdd"] {
+        assert!(text.contains(ext), "{ext} missing from:\n{text}");
+    }
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(springbake(&["bake"]).status.code(), Some(2));
+    assert_eq!(
+        springbake(&["bake", "/no/such/file.glb"]).status.code(),
+        Some(2)
+    );
+    let o = springbake(&[
+        "bake",
+        corpus("blender/icosphere.glb").to_str().unwrap(),
+        "-o",
+        "/tmp/x.fbx",
+        "--frames",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("glb"),
+        "lists the formats it writes: {}",
+        stderr(&o)
+    );
+    let _ = Path::new("/tmp/x.fbx");
+}
