@@ -1,4 +1,5 @@
 //! The `springbake` binary as a user runs it: exit codes, messages, the corpus, atomic output.
+#![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -1,5 +1,6 @@
 //! Lattice fit and embedding: Table 1 counts, interior fill, flat and open meshes, islands,
 //! memory limit, and the embedding's exactness.
+#![allow(clippy::unwrap_used)]
 
 use springbake_core::lattice::{
     fit_lattice, Embedding, FitError, FitSettings, Resolution, SpringLayout,

@@ -1,4 +1,5 @@
 //! Physics checks of the solver against closed forms and the papers (physics §2–7).
+#![allow(clippy::unwrap_used)]
 
 use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution, SpringLayout};
 use springbake_core::material::Material;

@@ -42,7 +42,7 @@ impl WatchJob for BakeJob {
     }
 
     fn run(&mut self, cancel: &CancelToken) -> Result<RunSummary, JobError> {
-        let loaded = self.input.load().map_err(|e| JobError::failed(e))?;
+        let loaded = self.input.load().map_err(JobError::failed)?;
         let is_cancelled = || cancel.is_cancelled();
         let mut hooks = BakeHooks {
             cancelled: Some(&is_cancelled),

@@ -1,11 +1,15 @@
 //! End-to-end bakes through the pipeline, checked by real clients: Khronos gltf-validator and
 //! Blender (bpy) playing the baked glTF, plus physics of the default bare-mesh scene.
+#![allow(clippy::unwrap_used)]
 
 use serde_json::{json, Value};
 use springbake_core::bake::BakedScene;
 use springbake_core::nalgebra::Point3;
 use springbake_core::scene::CacheSpec;
-use springbake_pipeline::{default_registry, default_scene_for_mesh, export, prepare, write_outputs, BakeHooks, LoadedScene, MeshOverrides, Prepared, Seconds};
+use springbake_pipeline::{
+    default_registry, default_scene_for_mesh, export, prepare, write_outputs, BakeHooks,
+    LoadedScene, MeshOverrides, Prepared, Seconds,
+};
 use std::path::{Path, PathBuf};
 
 fn corpus(name: &str) -> PathBuf {
@@ -13,26 +17,54 @@ fn corpus(name: &str) -> PathBuf {
 }
 
 /// Bake a bare mesh with the default scene; returns the prepared world, the bake and the files.
-fn bake_mesh(mesh: &Path, out: &Path, frames: usize, cache: CacheSpec) -> (Prepared, BakedScene, Vec<PathBuf>) {
+fn bake_mesh(
+    mesh: &Path,
+    out: &Path,
+    frames: usize,
+    cache: CacheSpec,
+) -> (Prepared, BakedScene, Vec<PathBuf>) {
     let registry = default_registry();
-    let mut loaded: LoadedScene = default_scene_for_mesh(mesh, &MeshOverrides { output: Some(out.to_path_buf()), frames: Some(frames), ..Default::default() });
+    let mut loaded: LoadedScene = default_scene_for_mesh(
+        mesh,
+        &MeshOverrides {
+            output: Some(out.to_path_buf()),
+            frames: Some(frames),
+            ..Default::default()
+        },
+    );
     loaded.scene.output.cache = cache;
     let mut prepared = prepare(&registry, &loaded, &mut Seconds::default()).unwrap();
-    let (baked, diagnostics) = prepared.simulate(&loaded.scene, &mut BakeHooks::default()).unwrap();
+    let (baked, diagnostics) = prepared
+        .simulate(&loaded.scene, &mut BakeHooks::default())
+        .unwrap();
     assert_eq!(diagnostics.len(), frames);
     // Known weakness (see the core issue note): a boundary cell can fold for a frame on a
     // drop; more than 1 % of the cells would be a regression.
     let cells: usize = prepared.bodies.iter().map(|b| b.lattice.cell_count()).sum();
     for d in &diagnostics {
-        assert!(d.inverted_cells * 100 <= cells, "frame {}: {} of {cells} cells inverted", d.frame, d.inverted_cells);
-        assert!(d.max_penetration < prepared.world.settings.layer.thickness_m, "frame {}: {d:?}", d.frame);
+        assert!(
+            d.inverted_cells * 100 <= cells,
+            "frame {}: {} of {cells} cells inverted",
+            d.frame,
+            d.inverted_cells
+        );
+        assert!(
+            d.max_penetration < prepared.world.settings.layer.thickness_m,
+            "frame {}: {d:?}",
+            d.frame
+        );
     }
     let files = export(&registry, &prepared, &baked, out, cache).unwrap();
     write_outputs(&files).unwrap();
     (prepared, baked, files.into_iter().map(|f| f.path).collect())
 }
 
-fn world_frames(prepared: &Prepared, baked: &BakedScene, mesh: usize, frames: &[usize]) -> Vec<Vec<[f64; 3]>> {
+fn world_frames(
+    prepared: &Prepared,
+    baked: &BakedScene,
+    mesh: usize,
+    frames: &[usize],
+) -> Vec<Vec<[f64; 3]>> {
     let m = &prepared.export_scene.meshes[baked.meshes[mesh].mesh_index];
     frames
         .iter()
@@ -40,7 +72,11 @@ fn world_frames(prepared: &Prepared, baked: &BakedScene, mesh: usize, frames: &[
             baked.meshes[mesh].frames[f]
                 .iter()
                 .map(|p| {
-                    let w = m.world_from_local.transform_point(&Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+                    let w = m.world_from_local.transform_point(&Point3::new(
+                        p[0] as f64,
+                        p[1] as f64,
+                        p[2] as f64,
+                    ));
                     [w.x, w.y, w.z]
                 })
                 .collect()
@@ -51,14 +87,25 @@ fn world_frames(prepared: &Prepared, baked: &BakedScene, mesh: usize, frames: &[
 #[test]
 fn a_bare_mesh_falls_lands_on_the_floor_and_settles() {
     let dir = tempfile::tempdir().unwrap();
-    let (prepared, baked, _) = bake_mesh(&corpus("icosphere.glb"), &dir.path().join("ico.glb"), 72, CacheSpec::Morph);
+    let (prepared, baked, _) = bake_mesh(
+        &corpus("icosphere.glb"),
+        &dir.path().join("ico.glb"),
+        72,
+        CacheSpec::Morph,
+    );
     let floor = prepared.floor.expect("the default scene has a floor");
     let layer = prepared.world.settings.layer.thickness_m;
     let frames = world_frames(&prepared, &baked, 0, &[0, 71]);
     let min_y = |f: &Vec<[f64; 3]>| f.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min);
     let (start, end) = (min_y(&frames[0]), min_y(&frames[1]));
-    assert!(start > floor + 0.1, "starts above the floor: lowest {start}, floor {floor}");
-    assert!(end < floor + 1e-3 && end > floor - layer, "rests in the floor's contact layer: lowest {end}, floor {floor}, layer {layer}");
+    assert!(
+        start > floor + 0.1,
+        "starts above the floor: lowest {start}, floor {floor}"
+    );
+    assert!(
+        end < floor + 1e-3 && end > floor - layer,
+        "rests in the floor's contact layer: lowest {end}, floor {floor}, layer {layer}"
+    );
     let speed = prepared.world.diagnostics(72).max_speed;
     assert!(speed < 0.2, "settled: max node speed {speed} m/s after 3 s");
 }
@@ -68,7 +115,10 @@ fn baked_gltf_passes_the_validator_and_plays_in_blender() {
     let dir = tempfile::tempdir().unwrap();
     let frames = [0usize, 5, 12, 23];
     let mut specs = Vec::new();
-    for (name, cache) in [("morph.glb", CacheSpec::Morph), ("skin.glb", CacheSpec::Skin)] {
+    for (name, cache) in [
+        ("morph.glb", CacheSpec::Morph),
+        ("skin.glb", CacheSpec::Skin),
+    ] {
         let out = dir.path().join(name);
         let (prepared, baked, files) = bake_mesh(&corpus("two_objects.glb"), &out, 24, cache);
         assert_eq!(files, vec![out.clone()]);
@@ -87,14 +137,19 @@ fn baked_gltf_passes_the_validator_and_plays_in_blender() {
     }
     let spec_path = dir.path().join("spec.json");
     std::fs::write(&spec_path, serde_json::to_vec(&json!(specs)).unwrap()).unwrap();
-    let out = springbake_testkit::run_python_client("gltf_roundtrip.py", &[spec_path.to_str().unwrap()]);
+    let out =
+        springbake_testkit::run_python_client("gltf_roundtrip.py", &[spec_path.to_str().unwrap()]);
     let report = springbake_testkit::last_json_line(&out);
     for r in report["files"].as_array().unwrap() {
         assert_eq!(r["frame_offset"], 0, "{r}");
         assert_eq!(r["visible_mesh_objects"], 2, "{r}");
         for o in r["objects"].as_array().unwrap() {
             let err = o["max_error"].as_f64().unwrap();
-            assert!(err <= 1e-4, "{}: Blender differs from our bake by {err} m", o["name"]);
+            assert!(
+                err <= 1e-4,
+                "{}: Blender differs from our bake by {err} m",
+                o["name"]
+            );
             assert_eq!(o["vertex_count"], o["expected_vertex_count"], "{o}");
             assert_eq!(o["uv_missing"], 0, "{o}");
             assert_eq!(o["materials_ok"], true, "{o}");

@@ -410,10 +410,7 @@ fn build_lattice(grid: &Grid, active: &[bool], layout: SpringLayout) -> Lattice 
     let mut cells = Vec::new();
     let mut cell_nodes = Vec::new();
     // Nodes numbered in grid order of first use by active cells (cells in grid order): deterministic.
-    for ci in 0..grid.cell_count() {
-        if !active[ci] {
-            continue;
-        }
+    for (ci, _) in active.iter().enumerate().filter(|(_, &on)| on) {
         let c = grid.cell_coords(ci);
         let mut corners = [0u32; 8];
         for (slot, off) in CORNERS.iter().enumerate() {
