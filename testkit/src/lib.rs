@@ -10,7 +10,9 @@ use std::process::Command;
 /// The workspace root (the folder holding the top `Cargo.toml`).
 pub fn workspace_root() -> PathBuf {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    here.parent().expect("testkit lives one level below the root").to_path_buf()
+    here.parent()
+        .expect("testkit lives one level below the root")
+        .to_path_buf()
 }
 
 /// `../shared/corpus` beside the checkout.
@@ -96,7 +98,8 @@ pub fn last_json_line(stdout: &str) -> serde_json::Value {
 pub fn gltf_validate(file: &Path) -> serde_json::Value {
     let root = workspace_root();
     assert!(
-        root.join("node_modules/gltf-validator/package.json").is_file(),
+        root.join("node_modules/gltf-validator/package.json")
+            .is_file(),
         "node_modules/gltf-validator missing: {}",
         setup_hint()
     );
