@@ -378,3 +378,78 @@ fn identical_bits_with_one_thread_and_with_all_threads() {
     let all = run_with_threads(rayon::current_num_threads().max(2));
     assert!(one == all, "results differ between 1 and several threads");
 }
+
+#[test]
+fn scripted_manipulator_sweep_pushes_a_jelly_cube_away() {
+    use springbake_core::solver::manipulator::{ManipulatorKey, ManipulatorTrack};
+    // The scene default layout (edges, face and body diagonals).
+    let (p, t) = box_mesh([-0.25, 0.0, -0.25], [0.25, 0.5, 0.25]);
+    let lattice = fit_lattice(
+        &p,
+        &t,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(6),
+            layout: SpringLayout::Both,
+            ..FitSettings::default()
+        },
+    )
+    .unwrap();
+    let m = Material::preset("jelly").unwrap();
+    let layer = WorldSettings::default_layer(lattice.cell_size, &m, 0.4);
+    let mut w = World::new(WorldSettings {
+        planes: vec![floor(0.0)],
+        layer,
+        ..no_contact(9.81)
+    });
+    w.add_lattice_body("jelly", &lattice, &m, Vector3::zeros());
+    // A vertical rod sweeping +x through the cube's centre line at 1 m/s.
+    // Contact acts on lattice nodes, so the rod is at least a cell thick (a thinner rod slips
+    // between nodes and folds cells: see the core issue note).
+    w.manipulators.push(ManipulatorTrack {
+        radius: 0.1,
+        length: 0.8,
+        friction: 0.3,
+        smooth: false,
+        keys: vec![
+            ManipulatorKey {
+                t: 0.0,
+                position: Vector3::new(-0.6, 0.25, 0.0),
+                yaw_deg: 90.0,
+            },
+            ManipulatorKey {
+                t: 1.0,
+                position: Vector3::new(0.4, 0.25, 0.0),
+                yaw_deg: 90.0,
+            },
+        ],
+        up: Vector3::y(),
+    });
+    let centre_x =
+        |w: &World| w.nodes.position.iter().map(|p| p.x).sum::<f64>() / w.nodes.len() as f64;
+    let x0 = centre_x(&w);
+    let mut touched = false;
+    for f in 1..=24 {
+        let d = w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        // Known weakness (core issue note): the rod pressing deep into jelly folds a cell or
+        // two next to it; more than 2 % of the cells would be a regression.
+        assert!(
+            d.inverted_cells * 50 <= lattice.cell_count(),
+            "frame {f}: {} inverted",
+            d.inverted_cells
+        );
+        if d.reaction().norm() > 0.0 {
+            touched = true;
+            assert!(
+                d.reaction().x < 0.0,
+                "the cube pushes back against the sweep: {:?}",
+                d.manipulator_reaction
+            );
+        }
+    }
+    assert!(touched, "the manipulator must touch the cube");
+    let moved = centre_x(&w) - x0;
+    assert!(
+        moved > 0.05,
+        "the cube moved away from the manipulator by only {moved} m"
+    );
+}

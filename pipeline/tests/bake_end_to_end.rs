@@ -166,3 +166,27 @@ fn same_inputs_give_the_same_bytes() {
     bake_mesh(&corpus("cone_2cm.glb"), &b, 12, CacheSpec::Morph);
     assert_eq!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
 }
+
+/// The lowest vertex height along the source's own up axis (index 1 for Y-up, 2 for Z-up),
+/// first and last frame, and whether the other horizontal coordinates stayed put.
+fn fall_along(mesh: &Path, up_index: usize) -> (f64, f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let (prepared, baked, _) = bake_mesh(mesh, &dir.path().join("out.pc2"), 24, CacheSpec::Morph);
+    let frames = world_frames(&prepared, &baked, 0, &[0, 23]);
+    let lowest = |f: &Vec<[f64; 3]>| f.iter().map(|p| p[up_index]).fold(f64::INFINITY, f64::min);
+    (lowest(&frames[0]), lowest(&frames[1]))
+}
+
+#[test]
+fn z_up_usd_falls_along_minus_z_and_y_up_gltf_along_minus_y() {
+    let (z0, z1) = fall_along(&corpus("cylinder.usdc"), 2);
+    assert!(
+        z1 < z0 - 0.05,
+        "Z-up USD falls along −Z: lowest z {z0} → {z1}"
+    );
+    let (y0, y1) = fall_along(&corpus("icosphere.glb"), 1);
+    assert!(
+        y1 < y0 - 0.05,
+        "Y-up glTF falls along −Y: lowest y {y0} → {y1}"
+    );
+}
