@@ -432,6 +432,18 @@ on = { collision = "pin" }
 loop = true
 procedure = { switch_feature = "collide" }
 "#;
+    // The test's text is the module doc's example, verbatim.
+    let module = include_str!("../src/events.rs");
+    let start = module.find("//! ```toml\n").unwrap() + "//! ```toml\n".len();
+    let end = start + module[start..].find("//! ```").unwrap();
+    let from_doc: String = module[start..end]
+        .lines()
+        .map(|l| format!("{}\n", l.trim_start_matches("//!").trim_start_matches(' ')))
+        .collect();
+    assert_eq!(
+        EventQueue::from_toml(&from_doc).unwrap().events(),
+        EventQueue::from_toml(doc).unwrap().events()
+    );
     let mut q = EventQueue::from_toml(doc).unwrap();
     // Frame 0: the ball already touches the lane, but hit_lane waits for the throw.
     let out = q.observe(&Observation::frame(0, FPS).with_collision("ball", "lane", 0.1, 1.0));
