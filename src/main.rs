@@ -13,7 +13,6 @@ use springbake_pipeline::{
 };
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(
@@ -139,18 +138,35 @@ fn usage(message: impl Into<String>) -> Failure {
     }
 }
 
-fn main() -> ExitCode {
+fn main() {
     // A bug must still end in a readable line, not a backtrace.
     std::panic::set_hook(Box::new(|info| {
         eprintln!("springbake: internal error: {info}");
     }));
     let cli = Cli::parse();
-    match run(cli.command) {
-        Ok(()) => ExitCode::SUCCESS,
+    let code = match run(cli.command) {
+        Ok(()) => 0,
         Err(f) => {
             eprintln!("springbake: error: {}", f.message);
-            ExitCode::from(f.code)
+            f.code
         }
+    };
+    exit_now(code)
+}
+
+/// End the process without running C++ static destructors. usd-core's libraries (loaded into
+/// the embedded Python) tear down their thread pools in static destructors, which can race
+/// with worker threads at exit and abort ("pure virtual method called") after a perfectly
+/// good run. Every output was already written and renamed into place by then, and every Rust
+/// value was dropped when `run` returned; only the standard streams need flushing.
+fn exit_now(code: u8) -> ! {
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    #[allow(unsafe_code)]
+    // SAFETY: `_exit` takes no pointers and never returns; nothing Rust owns needs dropping.
+    unsafe {
+        libc::_exit(i32::from(code))
     }
 }
 
