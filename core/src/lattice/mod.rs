@@ -18,9 +18,11 @@ pub enum SpringLayout {
 
 pub mod embed;
 pub mod fit;
+pub mod surface;
 
 pub use embed::Embedding;
 pub use fit::{fit_lattice, FitError, FitSettings, Resolution, CORNERS};
+pub use surface::surface_samples;
 
 use nalgebra::{Point3, Vector3};
 

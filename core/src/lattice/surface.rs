@@ -1,0 +1,93 @@
+//! Contact samples on the display surface. Rigid surfaces push on the *mesh*, not on the
+//! lattice nodes around it (which stand up to a cell off the surface): the mesh is sampled,
+//! each sample embedded in the lattice like a vertex, and a contact force at a sample is spread
+//! onto its cell's nodes by the trilinear weights (Terasawa eq 3.43–3.47, physics §1).
+//!
+//! Small triangles contribute their vertices (each carrying a third of the area of every
+//! triangle around it); a triangle longer than the sample spacing is covered by a barycentric
+//! grid of samples sharing its area, so a coarse mesh (a cube of 12 triangles) still touches a
+//! thin manipulator in the middle of a face. The areas sum to the mesh's area.
+
+use nalgebra::Point3;
+
+/// Sample points and the surface area (m²) each stands for.
+pub fn surface_samples(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    spacing: f64,
+) -> (Vec<Point3<f64>>, Vec<f64>) {
+    let mut vertex_area = vec![0.0; positions.len()];
+    let mut points = Vec::new();
+    let mut areas = Vec::new();
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        if area <= 0.0 || !area.is_finite() {
+            continue;
+        }
+        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+        let n = if spacing > 0.0 {
+            (longest / spacing).ceil() as usize
+        } else {
+            1
+        };
+        if n <= 1 {
+            for &i in t {
+                vertex_area[i as usize] += area / 3.0;
+            }
+            continue;
+        }
+        let count = (n + 1) * (n + 2) / 2;
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                points.push(Point3::from(
+                    a.coords * (1.0 - u - v) + b.coords * u + c.coords * v,
+                ));
+                areas.push(area / count as f64);
+            }
+        }
+    }
+    for (i, &area) in vertex_area.iter().enumerate() {
+        if area > 0.0 {
+            points.push(positions[i]);
+            areas.push(area);
+        }
+    }
+    (points, areas)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::{box_mesh, uv_sphere};
+
+    #[test]
+    fn areas_sum_to_the_mesh_area_and_big_faces_are_covered() {
+        let (p, t) = box_mesh([0.0; 3], [1.0; 3]);
+        let (s, a) = surface_samples(&p, &t, 0.1);
+        assert!((a.iter().sum::<f64>() - 6.0).abs() < 1e-9);
+        // Every 0.1 m patch of the top face has a sample within the spacing.
+        for x in 0..10 {
+            for z in 0..10 {
+                let q = Point3::new(0.05 + 0.1 * x as f64, 1.0, 0.05 + 0.1 * z as f64);
+                assert!(
+                    s.iter().any(|p| (p - q).norm() <= 0.1),
+                    "no sample near {q}"
+                );
+            }
+        }
+        let (sp, st) = uv_sphere([0.0; 3], 1.0, 16, 32);
+        let (points, areas) = surface_samples(&sp, &st, 1.0);
+        assert_eq!(
+            points.len(),
+            sp.len(),
+            "fine meshes are sampled at their vertices"
+        );
+        let total: f64 = areas.iter().sum();
+        assert!(
+            total > 12.0 && total < 4.0 * std::f64::consts::PI,
+            "{total}"
+        );
+    }
+}
