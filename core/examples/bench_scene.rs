@@ -273,7 +273,6 @@ fn standard_rows() -> (Vec<String>, bool) {
 
 /// `--standard`: only the standard scene (what scripts/bench.sh compares with Blender).
 fn standard_report(json: bool) {
-    println!("load average before: {}", load_average());
     let (rows, ok) = standard_rows();
     println!("load average after: {}", load_average());
     if json {

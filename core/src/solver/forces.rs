@@ -4,6 +4,7 @@
 //! through a CSR adjacency in fixed order (done inside the world's fused node pass, which also
 //! adds gravity and contact and updates the velocity), so there are no racy scatters.
 
+use super::miyazaki1996_velocity_dispersion::{speed_floor_sq, DispersionMode};
 use super::{NodeState, SpringSet, PAR_CHUNK};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -41,32 +42,103 @@ impl Adjacency {
     }
 }
 
-/// Force on each spring's `a` end (the `b` end gets the opposite). Fixed chunks of
-/// [`PAR_CHUNK`] springs, one task each; each slot is written by its spring alone.
-pub(crate) fn spring_forces(nodes: &NodeState, springs: &SpringSet, out: &mut [Vector3<f64>]) {
+/// What the spring pass leaves for the velocity dispersion (see [`SpringHints`]).
+///
+/// [`SpringHints`]: super::miyazaki1996_velocity_dispersion::SpringHints
+pub(crate) struct FloorOutput<'a> {
+    pub mode: DispersionMode,
+    pub inv_dt_sq: f64,
+    /// Per spring: 1 where the spring has no speed floor.
+    pub exceptional: &'a mut [u8],
+    /// Per chunk of [`PAR_CHUNK`] springs: the smallest speed floor² of the others.
+    pub chunk_floor: &'a mut [f64],
+}
+
+/// Forces of the springs `first..first + out.len()`; with `floor`, also each spring's
+/// dispersion flag (from the same squared length) and the chunk's smallest floor².
+#[inline]
+fn chunk_forces(
+    nodes: &NodeState,
+    springs: &SpringSet,
+    first: usize,
+    out: &mut [Vector3<f64>],
+    mut floor: Option<(DispersionMode, f64, &mut [u8])>,
+) -> f64 {
     let (pos, vel) = (&nodes.position[..], &nodes.velocity[..]);
-    out.par_chunks_mut(PAR_CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let first = chunk * PAR_CHUNK;
-            let range = first..first + out.len();
-            let (sa, sb) = (&springs.a[range.clone()], &springs.b[range.clone()]);
-            let rest = &springs.rest_length[range.clone()];
-            let (k, d) = (&springs.stiffness[range.clone()], &springs.damping[range]);
-            for (j, f) in out.iter_mut().enumerate() {
-                let (a, b) = (sa[j] as usize, sb[j] as usize);
-                let r = pos[a] - pos[b];
-                let len = r.norm();
-                if len <= f64::MIN_POSITIVE {
-                    *f = Vector3::zeros();
-                    continue;
+    let range = first..first + out.len();
+    let (sa, sb) = (&springs.a[range.clone()], &springs.b[range.clone()]);
+    let rest = &springs.rest_length[range.clone()];
+    let (k, d) = (&springs.stiffness[range.clone()], &springs.damping[range]);
+    let mut min_floor = f64::INFINITY;
+    for (j, f) in out.iter_mut().enumerate() {
+        let (a, b) = (sa[j] as usize, sb[j] as usize);
+        let r = pos[a] - pos[b];
+        let len_sq = r.norm_squared();
+        if let Some((mode, inv_dt_sq, flags)) = floor.as_mut() {
+            match speed_floor_sq(
+                *mode,
+                springs,
+                &nodes.inv_mass,
+                first + j,
+                len_sq,
+                *inv_dt_sq,
+            ) {
+                Some(fl) => {
+                    flags[j] = 0;
+                    min_floor = min_floor.min(fl);
                 }
-                let u = r / len;
-                let stretch = len - rest[j];
-                let closing = (vel[a] - vel[b]).dot(&u);
-                *f = -(k[j] * stretch + d[j] * closing) * u;
+                None => flags[j] = 1,
             }
-        });
+        }
+        let len = len_sq.sqrt();
+        if len <= f64::MIN_POSITIVE {
+            *f = Vector3::zeros();
+            continue;
+        }
+        let u = r / len;
+        let stretch = len - rest[j];
+        let closing = (vel[a] - vel[b]).dot(&u);
+        *f = -(k[j] * stretch + d[j] * closing) * u;
+    }
+    min_floor
+}
+
+/// Force on each spring's `a` end (the `b` end gets the opposite). Fixed chunks of
+/// [`PAR_CHUNK`] springs, one task each; each slot is written by its spring alone. With
+/// `floors`, also each spring's dispersion speed floor from the same squared length.
+pub(crate) fn spring_forces(
+    nodes: &NodeState,
+    springs: &SpringSet,
+    out: &mut [Vector3<f64>],
+    floors: Option<FloorOutput>,
+) {
+    match floors {
+        Some(FloorOutput {
+            mode,
+            inv_dt_sq,
+            exceptional,
+            chunk_floor,
+        }) => out
+            .par_chunks_mut(PAR_CHUNK)
+            .zip(exceptional.par_chunks_mut(PAR_CHUNK))
+            .zip(chunk_floor.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, ((out, flags), min_floor))| {
+                *min_floor = chunk_forces(
+                    nodes,
+                    springs,
+                    chunk * PAR_CHUNK,
+                    out,
+                    Some((mode, inv_dt_sq, flags)),
+                );
+            }),
+        None => out
+            .par_chunks_mut(PAR_CHUNK)
+            .enumerate()
+            .for_each(|(chunk, out)| {
+                chunk_forces(nodes, springs, chunk * PAR_CHUNK, out, None);
+            }),
+    }
 }
 
 /// Sum of the spring forces on node `i` (through the CSR adjacency, in fixed order).

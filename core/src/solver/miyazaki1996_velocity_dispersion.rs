@@ -191,12 +191,39 @@ fn correction(
     Some((dir * (share * wa), -dir * (share * wb)))
 }
 
+/// The square of a lower bound on spring `s`'s speed bound, valid whenever its squared length
+/// `len_sq` lies between `(0.9 L)²` and `(1.1 L)²`; `None` outside that window or with a
+/// pinned end. In the window the bound is at least `sqrt(k/m · 0.15 L²)` and `0.45 L / ΔT`
+/// (Bounded) or `sqrt(k/m · 0.99 L²)` (as printed), with `k/m = k (1/m_a + 1/m_b) / 2` for the
+/// harmonic mean mass. No square roots.
+#[inline]
+pub(crate) fn speed_floor_sq(
+    mode: DispersionMode,
+    springs: &SpringSet,
+    inv_mass: &[f64],
+    s: usize,
+    len_sq: f64,
+    inv_dt_sq: f64,
+) -> Option<f64> {
+    let (wa, wb) = (
+        inv_mass[springs.a[s] as usize],
+        inv_mass[springs.b[s] as usize],
+    );
+    let rest = springs.rest_length[s];
+    let rest_sq = rest * rest;
+    if wa == 0.0 || wb == 0.0 || !(len_sq >= 0.81 * rest_sq && len_sq <= 1.21 * rest_sq) {
+        return None;
+    }
+    let k_over_m = 0.5 * springs.stiffness[s] * (wa + wb);
+    Some(match mode {
+        DispersionMode::Bounded => (k_over_m * 0.15 * rest_sq).min(0.2025 * rest_sq * inv_dt_sq),
+        _ => k_over_m * 0.99 * rest_sq,
+    })
+}
+
 /// A cheap, conservative test that spring `s` is within its bound: `true` only when the
-/// exact test in [`correction`] would find no violation. It avoids both square roots: with
-/// `l²` between `(0.9 L)²` and `(1.1 L)²` the bound is at least
-/// `sqrt(k/m · 0.15 L²)` and `0.45 L / ΔT` (Bounded) or `sqrt(k/m · 0.99 L²)` (as printed),
-/// and `k/m = k (1/m_a + 1/m_b) / 2` for the harmonic mean mass. Springs it cannot clear go
-/// to the exact test.
+/// exact test in [`correction`] would find no violation (see [`speed_floor_sq`]). Springs it
+/// cannot clear go to the exact test.
 #[inline]
 fn surely_within_bound(
     mode: DispersionMode,
@@ -206,42 +233,72 @@ fn surely_within_bound(
     dt: f64,
 ) -> bool {
     let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
-    let (wa, wb) = (nodes.inv_mass[a], nodes.inv_mass[b]);
-    if wa == 0.0 || wb == 0.0 {
-        return false;
-    }
-    let rest = springs.rest_length[s];
-    let rest_sq = rest * rest;
     let len_sq = (nodes.position[a] - nodes.position[b]).norm_squared();
-    if !(len_sq >= 0.81 * rest_sq && len_sq <= 1.21 * rest_sq) {
-        return false;
+    match speed_floor_sq(mode, springs, &nodes.inv_mass, s, len_sq, 1.0 / (dt * dt)) {
+        Some(floor_sq) => (nodes.velocity[b] - nodes.velocity[a]).norm_squared() <= floor_sq,
+        None => false,
     }
-    let k_over_m = 0.5 * springs.stiffness[s] * (wa + wb);
-    let floor_sq = match mode {
-        DispersionMode::Bounded => (k_over_m * 0.15 * rest_sq).min(0.2025 * rest_sq / (dt * dt)),
-        _ => k_over_m * 0.99 * rest_sq,
-    };
-    (nodes.velocity[b] - nodes.velocity[a]).norm_squared() <= floor_sq
+}
+
+/// What the solver's passes already know this step, so dispersion can skip most springs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SpringHints<'a> {
+    /// Per spring, 1 where [`speed_floor_sq`] gave no floor (outside the length window or a
+    /// pinned end): only these can be over their bound when `uniform` holds.
+    pub exceptional: &'a [u8],
+    /// Every node's velocity lies within R of one common vector and `4 R²` is at most every
+    /// other spring's floor: then `|v_b − v_a| ≤ 2R` keeps all of them within their bound.
+    pub uniform: bool,
+}
+
+/// Whether spring `s` can be skipped without the exact test.
+#[inline]
+fn skippable(
+    mode: DispersionMode,
+    nodes: &NodeState,
+    springs: &SpringSet,
+    s: usize,
+    dt: f64,
+    hints: Option<SpringHints>,
+) -> bool {
+    match hints {
+        Some(h) if h.uniform => h.exceptional[s] == 0,
+        _ => surely_within_bound(mode, nodes, springs, s, dt),
+    }
 }
 
 /// Whether any spring is over its bound: one parallel pass in fixed chunks (the answer does
 /// not depend on the thread count), the cheap test first.
-fn any_violation(mode: DispersionMode, nodes: &NodeState, springs: &SpringSet, dt: f64) -> bool {
+fn any_violation(
+    mode: DispersionMode,
+    nodes: &NodeState,
+    springs: &SpringSet,
+    dt: f64,
+    hints: Option<SpringHints>,
+) -> bool {
     let n = springs.len();
     (0..n.div_ceil(PAR_CHUNK)).into_par_iter().any(|c| {
         (c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n)).any(|s| {
-            !surely_within_bound(mode, nodes, springs, s, dt)
+            !skippable(mode, nodes, springs, s, dt, hints)
                 && correction(mode, nodes, springs, s, dt).is_some()
         })
     })
 }
 
+/// Buffers the dispersion reuses from step to step (nothing is allocated once they have grown).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct DispersionScratch {
+    /// One colour's corrections between the parallel evaluation and the serial application
+    /// (`u32::MAX` in the spring slot: no correction).
+    pub corrections: Vec<(u32, Vector3<f64>, Vector3<f64>)>,
+    /// Per node, the colour pass that last changed its velocity.
+    pub changed: Vec<u64>,
+    /// The last pass number handed out.
+    pub pass: u64,
+}
+
 /// Apply the dispersion procedure to `nodes.velocity` (positions are the current ones).
-///
-/// One parallel check pass first: when no spring is over its bound (the common case) the
-/// sweeps are skipped, which gives exactly what a sweep finding nothing would. `scratch` holds
-/// one colour's corrections between the parallel evaluation and the serial application; it
-/// grows to the largest colour once and is reused (no allocation in later steps).
+/// `scratch` is reused between calls; see [`disperse_with`] for what the solver does.
 pub fn disperse(
     mode: DispersionMode,
     nodes: &mut NodeState,
@@ -251,42 +308,113 @@ pub fn disperse(
     max_iterations: u32,
     scratch: &mut Vec<(u32, Vector3<f64>, Vector3<f64>)>,
 ) -> DispersionStats {
+    let mut buffers = DispersionScratch {
+        corrections: std::mem::take(scratch),
+        ..DispersionScratch::default()
+    };
+    let stats = disperse_with(
+        mode,
+        nodes,
+        springs,
+        colouring,
+        dt,
+        max_iterations,
+        &mut buffers,
+        None,
+    );
+    *scratch = buffers.corrections;
+    stats
+}
+
+/// The dispersion procedure with reusable buffers.
+///
+/// One parallel check pass first: when no spring is over its bound (the common case) the
+/// sweeps are skipped, which gives exactly what a sweep finding nothing would. The first sweep
+/// evaluates every spring; later sweeps evaluate a spring only when one of its ends changed
+/// velocity since the spring was last evaluated (positions do not move during the procedure,
+/// so an unchanged spring would be found within its bound again): the same corrections in the
+/// same order as full sweeps, at the cost of reading two stamps per spring. `hints` (from the
+/// solver's spring and node passes) let the check and the first sweep skip springs that
+/// cannot be over their bound.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn disperse_with(
+    mode: DispersionMode,
+    nodes: &mut NodeState,
+    springs: &SpringSet,
+    colouring: &SpringColouring,
+    dt: f64,
+    max_iterations: u32,
+    scratch: &mut DispersionScratch,
+    hints: Option<SpringHints>,
+) -> DispersionStats {
     let mut stats = DispersionStats::default();
-    if mode == DispersionMode::Off || !any_violation(mode, nodes, springs, dt) {
+    if mode == DispersionMode::Off || !any_violation(mode, nodes, springs, dt, hints) {
         return stats;
     }
     const NONE: u32 = u32::MAX;
+    if scratch.changed.len() != nodes.len() {
+        scratch.changed.clear();
+        scratch.changed.resize(nodes.len(), 0);
+    }
+    let colours = colouring.colour_count() as u64;
+    // Pass numbers of this call: base + 1 + sweep·colours + colour, all above every stamp.
+    let base = scratch.pass;
     loop {
+        let sweep = stats.iterations as u64;
         let mut violated = 0u64;
         for c in 0..colouring.colour_count() {
             let group =
                 &colouring.order[colouring.offsets[c] as usize..colouring.offsets[c + 1] as usize];
-            if scratch.len() < group.len() {
-                scratch.resize(group.len(), (NONE, Vector3::zeros(), Vector3::zeros()));
+            let pass = base + 1 + sweep * colours + c as u64;
+            // The pass that last evaluated this colour (none before the first sweep).
+            let last_eval = (sweep > 0).then(|| pass - colours);
+            let corrections = &mut scratch.corrections;
+            if corrections.len() < group.len() {
+                corrections.resize(group.len(), (NONE, Vector3::zeros(), Vector3::zeros()));
             }
             let state: &NodeState = nodes;
-            scratch[..group.len()]
+            let changed = &scratch.changed[..];
+            corrections[..group.len()]
                 .par_iter_mut()
                 .zip(group.par_iter())
                 .with_min_len(PAR_CHUNK)
                 .for_each(|(slot, &s)| {
-                    slot.0 = match correction(mode, state, springs, s as usize, dt) {
-                        Some((da, db)) => {
-                            slot.1 = da;
-                            slot.2 = db;
-                            s
+                    let su = s as usize;
+                    let stale = match last_eval {
+                        // First sweep: what the hints cannot clear, and every spring an
+                        // earlier colour of this sweep changed (the hints predate that).
+                        None => {
+                            changed[springs.a[su] as usize].max(changed[springs.b[su] as usize])
+                                > base
+                                || !skippable(mode, state, springs, su, dt, hints)
                         }
-                        None => NONE,
+                        Some(last) => {
+                            changed[springs.a[su] as usize].max(changed[springs.b[su] as usize])
+                                >= last
+                        }
                     };
+                    slot.0 = NONE;
+                    if stale {
+                        if let Some((da, db)) = correction(mode, state, springs, su, dt) {
+                            *slot = (s, da, db);
+                        }
+                    }
                 });
             // No two springs of one colour share a node: applying in any order is the same.
-            for &(s, da, db) in scratch[..group.len()].iter() {
+            for &(s, da, db) in corrections[..group.len()].iter() {
                 if s != NONE {
-                    nodes.velocity[springs.a[s as usize] as usize] += da;
-                    nodes.velocity[springs.b[s as usize] as usize] += db;
+                    let (a, b) = (
+                        springs.a[s as usize] as usize,
+                        springs.b[s as usize] as usize,
+                    );
+                    nodes.velocity[a] += da;
+                    nodes.velocity[b] += db;
+                    scratch.changed[a] = pass;
+                    scratch.changed[b] = pass;
                     violated += 1;
                 }
             }
+            scratch.pass = pass;
         }
         if violated == 0 {
             break;
@@ -295,7 +423,8 @@ pub fn disperse(
         stats.iterations += 1;
         if stats.iterations >= max_iterations {
             // One more check tells whether springs are still over the bound.
-            stats.hit_cap = any_violation(mode, nodes, springs, dt);
+            // (Velocities changed since the hints were taken: no hints.)
+            stats.hit_cap = any_violation(mode, nodes, springs, dt, None);
             break;
         }
     }

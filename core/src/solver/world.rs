@@ -4,9 +4,11 @@
 
 use super::contact::{node_contacts, ContactLayer, Plane};
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
-use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency};
+use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
 use super::manipulator::{Capsule, ManipulatorTrack};
-use super::miyazaki1996_velocity_dispersion::{disperse, DispersionMode, SpringColouring};
+use super::miyazaki1996_velocity_dispersion::{
+    disperse_with, DispersionMode, DispersionScratch, SpringColouring, SpringHints,
+};
 use super::substeps::{accuracy_step, SubstepChoice};
 use super::{deterministic_sum, parallel_max, NodeState, SpringSet, PAR_CHUNK};
 use crate::lattice::Lattice;
@@ -108,7 +110,17 @@ struct Prepared {
     spring_force: Vec<Vector3<f64>>,
     /// Per fixed node chunk: deepest penetration and the sum of the manipulators' forces.
     chunk_contact: Vec<(f64, Vector3<f64>)>,
-    dispersion_scratch: Vec<(u32, Vector3<f64>, Vector3<f64>)>,
+    /// Per fixed node chunk: the largest |v − c|² after the velocity update (c: node 0's
+    /// velocity before it), for the dispersion's uniform-motion test.
+    chunk_spread: Vec<f64>,
+    /// Per spring: 1 where the dispersion must test it exactly (see `SpringHints`).
+    exceptional: Vec<u8>,
+    /// Per fixed spring chunk: the smallest dispersion speed floor².
+    chunk_floor: Vec<f64>,
+    /// Pass the spring hints to the dispersion (always, except in the test comparing with
+    /// the hint-free path).
+    hints_enabled: bool,
+    dispersion_scratch: DispersionScratch,
     capsules: Vec<Capsule>,
     static_step: SubstepChoice,
     shortest_spring: f64,
@@ -125,7 +137,11 @@ impl Prepared {
             + b(&self.colouring.offsets)
             + b(&self.spring_force)
             + b(&self.chunk_contact)
-            + b(&self.dispersion_scratch)
+            + b(&self.chunk_spread)
+            + b(&self.exceptional)
+            + b(&self.chunk_floor)
+            + b(&self.dispersion_scratch.corrections)
+            + b(&self.dispersion_scratch.changed)
             + b(&self.capsules)
     }
 }
@@ -259,7 +275,11 @@ impl World {
                 colouring,
                 spring_force: vec![Vector3::zeros(); self.springs.len()],
                 chunk_contact: vec![(0.0, Vector3::zeros()); n.div_ceil(PAR_CHUNK)],
-                dispersion_scratch: Vec::new(),
+                chunk_spread: vec![0.0; n.div_ceil(PAR_CHUNK)],
+                exceptional: vec![0; self.springs.len()],
+                chunk_floor: vec![0.0; self.springs.len().div_ceil(PAR_CHUNK)],
+                hints_enabled: true,
+                dispersion_scratch: DispersionScratch::default(),
                 capsules: Vec::with_capacity(self.manipulators.len() + self.live_capsules.len()),
                 static_step,
                 shortest_spring,
@@ -406,7 +426,23 @@ impl World {
         p.capsules.extend(live_capsules.iter().copied());
         let has_contact = !settings.planes.is_empty() || !p.capsules.is_empty();
 
-        spring_forces(nodes, springs, &mut p.spring_force);
+        let hinted = dispersion != DispersionMode::Off && p.hints_enabled;
+        spring_forces(
+            nodes,
+            springs,
+            &mut p.spring_force,
+            hinted.then_some(FloorOutput {
+                mode: dispersion,
+                inv_dt_sq: 1.0 / (dt * dt),
+                exceptional: &mut p.exceptional,
+                chunk_floor: &mut p.chunk_floor,
+            }),
+        );
+        let reference = nodes
+            .velocity
+            .first()
+            .copied()
+            .unwrap_or_else(Vector3::zeros);
 
         // Fused node pass: gravity + gathered springs + contact, then v += F/m·ΔT (eq 2).
         {
@@ -419,9 +455,11 @@ impl World {
                 .velocity
                 .par_chunks_mut(PAR_CHUNK)
                 .zip(p.chunk_contact.par_iter_mut())
+                .zip(p.chunk_spread.par_iter_mut())
                 .enumerate()
-                .for_each(|(chunk, (vel, out))| {
+                .for_each(|(chunk, ((vel, out), spread))| {
                     let first = chunk * PAR_CHUNK;
+                    let mut widest = 0.0f64;
                     let mut deepest = 0.0f64;
                     let mut from_caps = Vector3::zeros();
                     for (j, v) in vel.iter_mut().enumerate() {
@@ -436,8 +474,12 @@ impl World {
                             from_caps += fc;
                         }
                         *v += f * (inv_mass[i] * dt);
+                        // NaN-safe: a NaN spread makes the uniform test fail.
+                        let w = (*v - reference).norm_squared();
+                        widest = if w > widest || w.is_nan() { w } else { widest };
                     }
                     *out = (deepest, from_caps);
+                    *spread = widest;
                 });
         }
         if has_contact {
@@ -453,7 +495,18 @@ impl World {
         }
 
         // Velocity dispersion (§3.4 step 2–3).
-        let d = disperse(
+        let hints = hinted.then(|| {
+            let spread =
+                p.chunk_spread
+                    .iter()
+                    .fold(0.0f64, |m, &w| if w > m || w.is_nan() { w } else { m });
+            let floor = p.chunk_floor.iter().fold(f64::INFINITY, |m, &f| m.min(f));
+            SpringHints {
+                exceptional: &p.exceptional,
+                uniform: 4.0 * spread <= floor,
+            }
+        });
+        let d = disperse_with(
             dispersion,
             nodes,
             springs,
@@ -461,6 +514,7 @@ impl World {
             dt,
             max_iter,
             &mut p.dispersion_scratch,
+            hints,
         );
 
         // Position update with the new velocity (eq 3, symplectic).
@@ -618,4 +672,54 @@ fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> bool {
         let signed = if parity == 0 { vol } else { -vol };
         signed <= 0.0
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lattice::{fit_lattice, FitSettings, Resolution};
+    use crate::shapes::box_mesh;
+
+    #[test]
+    fn dispersion_hints_change_nothing_through_an_impact() {
+        // A soft cube thrown at a wall fast enough to need the fusion model, stepped with and
+        // without the spring hints: the same bits and the same dispersion counts every step.
+        let (p, t) = box_mesh([0.0, 0.2, 0.0], [0.3, 0.5, 0.3]);
+        let lattice = fit_lattice(
+            &p,
+            &t,
+            &FitSettings {
+                resolution: Resolution::CellsAlongLongest(5),
+                ..FitSettings::default()
+            },
+        )
+        .unwrap();
+        let m = Material::preset("soft_rubber").unwrap();
+        let mut hinted = World::new(WorldSettings {
+            planes: vec![Plane {
+                normal: -Vector3::x(),
+                offset: -0.35,
+            }],
+            layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+            ..WorldSettings::default()
+        });
+        hinted.add_lattice_body("cube", &lattice, &m, Vector3::new(20.0, 0.0, 0.0));
+        let dt = hinted.choose_substeps(1.0 / 24.0).dt;
+        let mut plain = hinted.clone();
+        plain.prepare().hints_enabled = false;
+        let (mut corrections, mut uniform_steps) = (0, 0);
+        for _ in 0..600 {
+            let a = hinted.step(dt);
+            let b = plain.step(dt);
+            assert_eq!(a, b);
+            corrections += a.dispersion_corrections;
+            let h = hinted.prepared.as_ref().unwrap();
+            let spread = h.chunk_spread.iter().cloned().fold(0.0, f64::max);
+            let floor = h.chunk_floor.iter().cloned().fold(f64::INFINITY, f64::min);
+            uniform_steps += (4.0 * spread <= floor) as u32;
+        }
+        assert_eq!(hinted.nodes, plain.nodes);
+        assert!(corrections > 0, "the impact must need the fusion model");
+        assert!(uniform_steps > 0, "the hints must be used at some step");
+    }
 }
