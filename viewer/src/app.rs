@@ -185,7 +185,7 @@ impl ViewerApp {
         match Self::frame_meshes(&mut source, 1) {
             Ok(m) => {
                 if reframe {
-                    self.camera = initial_camera(&m, source.up());
+                    self.camera = initial_camera(&source);
                 }
                 self.recorded.push(m);
             }

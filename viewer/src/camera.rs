@@ -41,12 +41,13 @@ pub struct OrbitCamera {
 }
 
 impl OrbitCamera {
-    /// A camera looking at `target` from yaw 35°, pitch 20°.
+    /// A camera looking at `target` from yaw −60°, pitch 20°: from the front right (+Z, +X for
+    /// Y-up scenes; −Y, +X for Z-up ones, Blender's front view).
     pub fn new(target: Vector3<f64>, up: Vector3<f64>, distance: f64) -> OrbitCamera {
         OrbitCamera {
             target,
             up: up.normalize(),
-            yaw_deg: 35.0,
+            yaw_deg: -60.0,
             pitch_deg: 20.0,
             distance,
             fov_y_deg: 40.0,

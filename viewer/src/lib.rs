@@ -17,7 +17,6 @@ pub mod reload;
 pub mod source;
 
 use camera::OrbitCamera;
-use raster::bounds_of;
 use source::ViewSource;
 use springbake_core::plugin::PluginError;
 use springbake_core::solver::SimulationError;
@@ -92,17 +91,15 @@ impl ScreenshotArgs {
 /// Largest screenshot side, pixels.
 pub const MAX_SCREENSHOT_SIDE: u32 = 8192;
 
-/// The camera a file opens with: framing its frame-1 geometry.
-pub fn initial_camera(
-    meshes: &[raster::DrawMesh],
-    up: springbake_core::nalgebra::Vector3<f64>,
-) -> OrbitCamera {
-    let (lo, hi) = bounds_of(meshes.iter().flat_map(|m| m.positions.iter())).unwrap_or_default();
-    OrbitCamera::framing(lo, hi, up)
+/// The camera a file opens with: framing [`ViewSource::view_bounds`], taken before any step so
+/// every frame of one file is drawn from the same view.
+pub fn initial_camera(source: &ViewSource) -> OrbitCamera {
+    let (lo, hi) = source.view_bounds().unwrap_or_default();
+    OrbitCamera::framing(lo, hi, source.up())
 }
 
-/// Render frame `args.frame` of `args.input` to a PNG with the software rasterizer. The camera
-/// frames the first frame's geometry, so frames of one file are drawn from the same view.
+/// Render frame `args.frame` of `args.input` to a PNG with the software rasterizer, seen by
+/// [`initial_camera`].
 pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     if args.width == 0
         || args.height == 0
@@ -127,9 +124,13 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
             source.frame_count()
         )));
     }
-    let first = source.meshes_at(1)?;
-    let camera = initial_camera(&first, source.up());
-    let meshes = source.meshes_at(args.frame)?;
+    let camera = initial_camera(&source);
+    let floor = match (source.floor(), source.view_bounds()) {
+        (Some(h), Some((lo, hi))) => raster::floor_meshes(lo, hi, source.up(), h),
+        _ => Vec::new(),
+    };
+    let mut meshes = source.meshes_at(args.frame)?;
+    meshes.extend(floor);
     let image = raster::render(&meshes, &camera, args.width, args.height);
     let bytes = image.to_png().map_err(|e| ViewerError::Io {
         path: args.output.clone(),

@@ -220,6 +220,96 @@ fn fill_triangle(t: &ShadedTriangle, w: u32, h: u32, depth: &mut [f64], colour: 
     }
 }
 
+/// Colour of the floor and of its grid lines.
+pub const FLOOR_COLOUR: [u8; 3] = [50, 55, 62];
+pub const GRID_COLOUR: [u8; 3] = [78, 84, 94];
+
+/// The floor at height `floor` along `up` under the box `lo..hi`: a quad covering the box's
+/// horizontal extent and a 10 × 10 grid of thin strips a hair above it.
+pub fn floor_meshes(
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+    up: Vector3<f64>,
+    floor: f64,
+) -> Vec<DrawMesh> {
+    let trial = if up.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::z()
+    };
+    let a = (trial - up * up.dot(&trial)).normalize();
+    let b = up.cross(&a);
+    // Extent of the box's corners along a and b.
+    let (mut a0, mut a1, mut b0, mut b1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for i in 0..8 {
+        let c = Vector3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        a0 = a0.min(a.dot(&c));
+        a1 = a1.max(a.dot(&c));
+        b0 = b0.min(b.dot(&c));
+        b1 = b1.max(b.dot(&c));
+    }
+    let size = (a1 - a0).max(b1 - b0).max(1e-3);
+    let at = |u: f64, v: f64, lift: f64| a * u + b * v + up * (floor + lift);
+    let quad = |p: [Vector3<f64>; 4], mesh: &mut DrawMesh| {
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend_from_slice(&p);
+        mesh.triangles.push([base, base + 1, base + 2]);
+        mesh.triangles.push([base, base + 2, base + 3]);
+    };
+    let mut plane = DrawMesh {
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        colour: FLOOR_COLOUR,
+    };
+    quad(
+        [
+            at(a0, b0, 0.0),
+            at(a1, b0, 0.0),
+            at(a1, b1, 0.0),
+            at(a0, b1, 0.0),
+        ],
+        &mut plane,
+    );
+    let mut grid = DrawMesh {
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        colour: GRID_COLOUR,
+    };
+    let (w, lift) = (0.002 * size, 1e-4 * size);
+    for i in 0..=10 {
+        let u = a0 + (a1 - a0) * i as f64 / 10.0;
+        quad(
+            [
+                at(u - w, b0, lift),
+                at(u + w, b0, lift),
+                at(u + w, b1, lift),
+                at(u - w, b1, lift),
+            ],
+            &mut grid,
+        );
+        let v = b0 + (b1 - b0) * i as f64 / 10.0;
+        quad(
+            [
+                at(a0, v - w, lift),
+                at(a1, v - w, lift),
+                at(a1, v + w, lift),
+                at(a0, v + w, lift),
+            ],
+            &mut grid,
+        );
+    }
+    vec![plane, grid]
+}
+
 /// A closed triangle mesh of a capsule: `segments` around the axis, `rings` per hemispherical
 /// cap (the cylinder is the band between the caps' equators).
 pub fn capsule_mesh(capsule: &Capsule, segments: u32, rings: u32, colour: [u8; 3]) -> DrawMesh {

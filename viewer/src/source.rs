@@ -231,6 +231,56 @@ impl ViewSource {
         }
     }
 
+    /// The box a camera should frame, from the state before any step: the bodies, their
+    /// shadow on the floor (where they fall to), and the scripted manipulators' key positions
+    /// (± half their length); for a baked file, the bodies over every frame.
+    pub fn view_bounds(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let mut points: Vec<Vector3<f64>> = Vec::new();
+        match self {
+            ViewSource::Simulated(s) => {
+                let up = s.up();
+                for m in s.body_meshes() {
+                    if let Some((lo, hi)) = m.bounds() {
+                        points.push(lo);
+                        points.push(hi);
+                        if let Some(floor) = s.prepared.floor {
+                            points.push(lo - up * up.dot(&lo) + up * floor);
+                            points.push(hi - up * up.dot(&hi) + up * floor);
+                        }
+                    }
+                }
+                for track in &s.prepared.world.manipulators {
+                    for key in &track.keys {
+                        let c = track.capsule_at(key.t);
+                        let (a, b) = c.endpoints();
+                        points.push(a);
+                        points.push(b);
+                    }
+                }
+            }
+            ViewSource::Baked(b) => {
+                let step = (b.frame_count / 200).max(1);
+                for f in (1..=b.frame_count).step_by(step) {
+                    for m in b.meshes_at(f) {
+                        if let Some((lo, hi)) = m.bounds() {
+                            points.push(lo);
+                            points.push(hi);
+                        }
+                    }
+                }
+            }
+        }
+        crate::raster::bounds_of(points.iter())
+    }
+
+    /// Floor height along up, when the scene has a floor (a baked file has none).
+    pub fn floor(&self) -> Option<f64> {
+        match self {
+            ViewSource::Simulated(s) => s.prepared.floor,
+            ViewSource::Baked(_) => None,
+        }
+    }
+
     /// Everything to draw at 1-based `frame` (a simulation steps forward to it).
     pub fn meshes_at(&mut self, frame: usize) -> Result<Vec<DrawMesh>, ViewerError> {
         match self {

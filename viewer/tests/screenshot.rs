@@ -1,11 +1,13 @@
 //! `render_screenshot` end to end: a scene with a falling cube renders to a PNG of the asked
-//! size, the object's pixels differ from the background and the corners do not, the cube moves
+//! size, the object's pixels differ from the background (and from the floor) and the corners
+//! do not, the cube moves
 //! down the picture as it falls, and a baked glb's frame N (morph weights applied) matches the
 //! simulation's frame N. Also the live-reload watcher and the argument errors.
 
 #![allow(clippy::unwrap_used)]
 
-use springbake_viewer::raster::BACKGROUND;
+use springbake_viewer::raster::{DrawMesh, BACKGROUND};
+use springbake_viewer::source::ViewSource;
 use springbake_viewer::{render_screenshot, ScreenshotArgs, ViewerError};
 use std::path::Path;
 
@@ -55,13 +57,14 @@ impl Decoded {
         ]
     }
 
-    /// Pixels that are not the background: count and mean row.
+    /// Pixels of the (orange) body, not the background nor the grey-blue floor: count and
+    /// mean row.
     fn object(&self) -> (usize, f64) {
-        let bg = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 255];
         let (mut n, mut rows) = (0usize, 0.0);
         for y in 0..self.height {
             for x in 0..self.width {
-                if self.pixel(x, y) != bg {
+                let p = self.pixel(x, y);
+                if p[0] as i32 > p[2] as i32 + 30 {
                     n += 1;
                     rows += y as f64;
                 }
@@ -109,11 +112,20 @@ fn scene_screenshot_has_the_object_on_a_clean_background_and_falls() {
     }
     let centre = first.pixel(80, 60);
     assert_ne!(centre, bg, "the cube is in the middle of the frame");
+    assert!(
+        centre[0] as i32 > centre[2] as i32 + 30,
+        "body colour: {centre:?}"
+    );
     let (n1, row1) = first.object();
     // The framing puts the bounding sphere in 1/1.2 of the height: the cube covers a real area,
     // but not the whole picture.
     assert!(n1 > 1500 && n1 < 160 * 120 / 2, "object pixels: {n1}");
-    assert!((row1 - 60.0).abs() < 10.0, "centred vertically: {row1}");
+    // The view frames the cube and the floor it falls to, so at frame 1 the cube sits in the
+    // upper half of the picture.
+    assert!(
+        row1 > 10.0 && row1 < 60.0,
+        "in the upper half: mean row {row1}"
+    );
 
     // Frame 8 (t = 0.29 s): free fall of about 0.41 m, not yet on the floor (0.55 m below).
     let falling = shot(&scene, &dir.path().join("f8.png"), 8);
@@ -139,29 +151,62 @@ fn baked_glb_frames_play_back_their_morph_weights() {
     let loaded = springbake_pipeline::load_scene(&scene).unwrap();
     springbake_pipeline::bake(&registry, &loaded, &mut Default::default()).unwrap();
     let glb = dir.path().join("baked.glb");
-    assert!(glb.exists());
 
-    let sim = shot(&scene, &dir.path().join("sim8.png"), 8);
-    let baked = shot(&glb, &dir.path().join("baked8.png"), 8);
-    let rest = shot(&glb, &dir.path().join("baked1.png"), 1);
-    let differing = |a: &Decoded, b: &Decoded| {
-        a.rgba
-            .chunks(4)
-            .zip(b.rgba.chunks(4))
-            .filter(|(p, q)| p != q)
-            .count()
+    // The baked file's frame N (morph weights applied) is the simulation's frame N: compare
+    // the vertex bounds and centroid (f32 deltas against f64 positions).
+    let mut sim = ViewSource::open(&registry, &scene).unwrap();
+    let mut baked = ViewSource::open(&registry, &glb).unwrap();
+    assert!(
+        matches!(baked, ViewSource::Baked(_)),
+        "a glb with morph targets plays back"
+    );
+    assert_eq!(baked.frame_count(), 12);
+    assert!(
+        (baked.fps() - 24.0).abs() < 1e-9,
+        "fps from the key times: {}",
+        baked.fps()
+    );
+    let summary = |meshes: Vec<DrawMesh>| {
+        let points: Vec<_> = meshes
+            .iter()
+            .flat_map(|m| m.positions.iter().copied())
+            .collect();
+        let (lo, hi) = springbake_viewer::raster::bounds_of(points.iter()).unwrap();
+        let centroid = points
+            .iter()
+            .sum::<springbake_core::nalgebra::Vector3<f64>>()
+            / points.len() as f64;
+        (lo, hi, centroid)
     };
-    // f32 morph deltas against f64 positions: at most a few edge pixels differ.
+    let start = summary(baked.meshes_at(1).unwrap());
+    for frame in [1, 8, 12] {
+        let (slo, shi, sc) = summary(sim.meshes_at(frame).unwrap());
+        let (blo, bhi, bc) = summary(baked.meshes_at(frame).unwrap());
+        for (s, b) in [(slo, blo), (shi, bhi), (sc, bc)] {
+            assert!(
+                (s - b).norm() < 1e-4,
+                "frame {frame}: simulated {s:?} vs baked {b:?}"
+            );
+        }
+    }
+    let fallen = summary(baked.meshes_at(8).unwrap());
     assert!(
-        differing(&sim, &baked) < 40,
-        "baked frame 8 matches the simulation: {} pixels differ",
-        differing(&sim, &baked)
+        start.2.y - fallen.2.y > 0.3,
+        "the baked cube falls: {:?} -> {:?}",
+        start.2,
+        fallen.2
     );
-    assert!(
-        differing(&rest, &baked) > 500,
-        "frame 1 and frame 8 differ: {}",
-        differing(&rest, &baked)
-    );
+
+    // And through the screenshot path: frames 1 and 8 differ, asking past the end is an error.
+    let rest = shot(&glb, &dir.path().join("baked1.png"), 1);
+    let later = shot(&glb, &dir.path().join("baked8.png"), 8);
+    let differing = rest
+        .rgba
+        .chunks(4)
+        .zip(later.rgba.chunks(4))
+        .filter(|(p, q)| p != q)
+        .count();
+    assert!(differing > 500, "frame 1 and frame 8 differ: {differing}");
     let err = render_screenshot(&ScreenshotArgs {
         frame: 13,
         ..ScreenshotArgs::new(&glb, dir.path().join("x.png"))
