@@ -5,7 +5,9 @@ use crate::report::{BodyReport, Seconds};
 use crate::{BakeHooks, LoadedScene, PipelineError};
 use springbake_core::bake::{BakedLattice, BakedMesh, BakedScene};
 use springbake_core::display::{ImportedScene, SourceDocument};
-use springbake_core::lattice::{fit_lattice, Embedding, FitSettings, Lattice, Resolution};
+use springbake_core::lattice::{
+    fit_lattice, surface_samples, Embedding, FitSettings, Lattice, Resolution,
+};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
 use springbake_core::plugin::{ImportSettings, Registry};
@@ -168,8 +170,8 @@ pub fn prepare(
         }
     }
 
-    // Floor: explicit, none, or automatic (NaN): 0 when everything is above it, else a quarter
-    // of the tallest mesh below the lowest point, so the mesh still drops onto it.
+    // Floor: explicit, none, or automatic (NaN): 0 when everything is above it, else just
+    // under the lowest point (5 % of the tallest mesh), so the mesh drops, lands and settles.
     let floor = match scene.world.floor {
         Some(h) if h.is_nan() => {
             let (mut lowest, mut tallest) = (f64::INFINITY, 0.0f64);
@@ -184,7 +186,7 @@ pub fn prepare(
             Some(if lowest >= 0.0 {
                 0.0
             } else {
-                lowest - 0.25 * tallest
+                lowest - 0.05 * tallest
             })
         }
         other => other,
@@ -309,6 +311,9 @@ pub fn prepare(
     for (p, (lattice, material)) in pending.into_iter().zip(fitted) {
         let velocity = Vector3::from(scene.body[p.body].velocity);
         let handle = world.add_lattice_body(p.name.clone(), &lattice, &material, velocity);
+        // The mesh, not its lattice, touches the floor, walls and manipulators.
+        let (samples, areas) = surface_samples(&p.points, &p.triangles, 0.5 * lattice.cell_size);
+        world.add_contact_surface(handle, &lattice, &samples, &areas);
         let embedding = Embedding::new(&lattice, &p.points);
         bodies.push(PreparedBody {
             name: p.name,

@@ -3,8 +3,8 @@
 //! each sample embedded in the lattice like a vertex, and a contact force at a sample is spread
 //! onto its cell's nodes by the trilinear weights (Terasawa eq 3.43–3.47, physics §1).
 //!
-//! Small triangles contribute their vertices (each carrying a third of the area of every
-//! triangle around it); a triangle longer than the sample spacing is covered by a barycentric
+//! Small triangles (up to twice the sample spacing) contribute their vertices (each carrying a
+//! third of the area of every triangle around it); a longer triangle is covered by a barycentric
 //! grid of samples sharing its area, so a coarse mesh (a cube of 12 triangles) still touches a
 //! thin manipulator in the middle of a face. The areas sum to the mesh's area.
 
@@ -31,7 +31,8 @@ pub fn surface_samples(
         } else {
             1
         };
-        if n <= 1 {
+        // Up to twice the spacing the triangle's own vertices are close enough.
+        if n <= 2 {
             for &i in t {
                 vertex_area[i as usize] += area / 3.0;
             }

@@ -8,6 +8,7 @@
 //! for bit whatever the thread count.
 
 mod contact;
+pub mod deformation_damping;
 pub mod diagnostics;
 mod forces;
 pub mod manipulator;

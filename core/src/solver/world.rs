@@ -3,6 +3,7 @@
 //! dispersion → position update).
 
 use super::contact::{node_contacts, ContactLayer, Plane};
+use super::deformation_damping::rigid_motion;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
 use super::manipulator::{Capsule, ManipulatorTrack};
@@ -85,6 +86,9 @@ pub struct BodyInfo {
     pub springs: Range<usize>,
     /// Lattice cells (8 world node indices each), for the inverted-cell count.
     pub cells: Vec<[u32; 8]>,
+    /// Damping rate of the deformation relative to the rigid motion, 1/s (0: none); see
+    /// [`super::deformation_damping`].
+    pub deformation_damping: f64,
 }
 
 /// All simulated bodies and what they touch.
@@ -118,6 +122,12 @@ pub struct SurfacePoints {
     pub weights: Vec<[f64; 8]>,
     /// The point's area over a cell face (L²): its share of a node's contact stiffness.
     pub share: Vec<f64>,
+    /// The body's mass per contact share times the point's share, kg: the mass the point's
+    /// contact damper is scaled for, so a body landing on its surface is damped as a whole
+    /// (a damper scaled for the point's own tiny mass lets a heavy body bounce almost forever).
+    pub body_mass: Vec<f64>,
+    /// The body each point belongs to.
+    pub body: Vec<u32>,
 }
 
 impl SurfacePoints {
@@ -153,6 +163,8 @@ struct Prepared {
     point_contact: Vec<(Vector3<f64>, f64, Vector3<f64>)>,
     /// Per node: the surface points' contact forces spread onto it.
     surface_force: Vec<Vector3<f64>>,
+    /// Per body: whether its nodes' box reaches a rigid surface this step.
+    body_may_touch: Vec<bool>,
     static_step: SubstepChoice,
     shortest_spring: f64,
 }
@@ -224,18 +236,26 @@ impl World {
             }
         }
         let k = material.spring_constant(lattice.cell_size);
+        let zeta = material.damping_ratio;
         let springs: Vec<(u32, u32, f64, f64)> = lattice
             .springs
             .iter()
             .map(|s| {
                 let (ma, mb) = (mass[s.a as usize], mass[s.b as usize]);
                 let mu = ma * mb / (ma + mb);
-                (s.a, s.b, k, 2.0 * material.damping_ratio * (k * mu).sqrt())
+                (s.a, s.b, k, 2.0 * zeta * (k * mu).sqrt())
             })
             .collect();
         let positions: Vec<Vector3<f64>> =
             lattice.rest_positions.iter().map(|p| p.coords).collect();
         let handle = self.add_body(name, &positions, &mass, &springs, velocity);
+        let longest = lattice.dims.iter().copied().max().unwrap_or(1) as f64 * lattice.cell_size;
+        self.bodies[handle.0].deformation_damping = super::deformation_damping::damping_rate(
+            material.damping_ratio,
+            material.young_pa,
+            material.density_kg_m3,
+            longest,
+        );
         self.bodies[handle.0].cells = lattice
             .cell_nodes
             .iter()
@@ -274,6 +294,7 @@ impl World {
             nodes: base as usize..self.nodes.len(),
             springs: first_spring..self.springs.len(),
             cells: Vec::new(),
+            deformation_damping: 0.0,
         });
         self.prepared = None;
         BodyHandle(self.bodies.len() - 1)
@@ -293,12 +314,21 @@ impl World {
         let base = info.nodes.start as u32;
         let embedding = crate::lattice::Embedding::new(lattice, points);
         let face = lattice.cell_size * lattice.cell_size;
+        let shares: Vec<f64> = (0..points.len())
+            .map(|i| areas_m2.get(i).copied().unwrap_or(0.0) / face)
+            .collect();
+        let total_share: f64 = shares.iter().sum();
+        let body_mass: f64 = self.nodes.mass[info.nodes.clone()].iter().sum();
         for (i, nodes) in embedding.nodes.iter().enumerate() {
             self.surface.nodes.push(nodes.map(|n| n + base));
             self.surface.weights.push(embedding.weights[i]);
-            self.surface
-                .share
-                .push(areas_m2.get(i).copied().unwrap_or(0.0) / face);
+            self.surface.share.push(shares[i]);
+            self.surface.body.push(body.0 as u32);
+            self.surface.body_mass.push(if total_share > 0.0 {
+                body_mass * shares[i] / total_share
+            } else {
+                0.0
+            });
         }
         for n in info.nodes.clone() {
             self.node_contact[n] = false;
@@ -343,6 +373,7 @@ impl World {
                 dispersion_scratch: DispersionScratch::default(),
                 capsules: Vec::with_capacity(self.manipulators.len() + self.live_capsules.len()),
                 point_contact: vec![(Vector3::zeros(), 0.0, Vector3::zeros()); self.surface.len()],
+                body_may_touch: Vec::with_capacity(self.bodies.len()),
                 surface_force: vec![Vector3::zeros(); if self.surface.is_empty() { 0 } else { n }],
                 static_step,
                 shortest_spring,
@@ -481,6 +512,7 @@ impl World {
             live_capsules,
             surface,
             node_contact,
+            bodies,
             ..
         } = self;
         let p = prepared.as_mut().expect("prepared");
@@ -516,26 +548,78 @@ impl World {
             let planes = &settings.planes[..];
             let caps = &p.capsules[..];
             let state: &NodeState = nodes;
-            p.point_contact
-                .par_iter_mut()
-                .with_min_len(PAR_CHUNK)
-                .enumerate()
-                .for_each(|(i, out)| {
-                    let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
-                    let (mut x, mut v, mut m) = (Vector3::zeros(), Vector3::zeros(), 0.0);
-                    for c in 0..8 {
-                        let n = ids[c] as usize;
-                        x += state.position[n] * w[c];
-                        v += state.velocity[n] * w[c];
-                        m += state.mass[n] * w[c];
-                    }
-                    let share = surface.share[i];
-                    let point_layer = ContactLayer {
-                        stiffness: layer.stiffness * share,
-                        ..layer
-                    };
-                    *out = node_contacts(&point_layer, planes, caps, x, v, m * share, dt);
+            // Broad phase: a body whose nodes' box touches no rigid surface has no contact
+            // (its surface lies inside the cells, inside that box).
+            p.body_may_touch.clear();
+            p.body_may_touch.extend(bodies.iter().map(|b| {
+                let (mut lo, mut hi) = (
+                    Vector3::repeat(f64::INFINITY),
+                    Vector3::repeat(f64::NEG_INFINITY),
+                );
+                for x in &state.position[b.nodes.clone()] {
+                    lo = lo.inf(x);
+                    hi = hi.sup(x);
+                }
+                let plane_near = planes.iter().any(|pl| {
+                    let lowest = (0..8).map(|c| {
+                        let corner = Vector3::new(
+                            if c & 1 == 0 { lo.x } else { hi.x },
+                            if c & 2 == 0 { lo.y } else { hi.y },
+                            if c & 4 == 0 { lo.z } else { hi.z },
+                        );
+                        pl.normal.dot(&corner)
+                    });
+                    lowest.fold(f64::INFINITY, f64::min) < pl.offset
                 });
+                let capsule_near = caps.iter().any(|c| {
+                    let (a, b) = c.endpoints();
+                    let (clo, chi) = (
+                        a.inf(&b).add_scalar(-c.radius),
+                        a.sup(&b).add_scalar(c.radius),
+                    );
+                    (0..3).all(|k| clo[k] <= hi[k] && chi[k] >= lo[k])
+                });
+                plane_near || capsule_near
+            }));
+            let may_touch = &p.body_may_touch;
+            let point = |(i, out): (usize, &mut (Vector3<f64>, f64, Vector3<f64>))| {
+                if !may_touch[surface.body[i] as usize] {
+                    *out = (Vector3::zeros(), 0.0, Vector3::zeros());
+                    return;
+                }
+                let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
+                // Position, velocity and the effective mass 1 / Σ w²/m that a force at
+                // the point meets through its cell's nodes.
+                let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
+                for c in 0..8 {
+                    let n = ids[c] as usize;
+                    x += state.position[n] * w[c];
+                    v += state.velocity[n] * w[c];
+                    compliance += w[c] * w[c] * state.inv_mass[n];
+                }
+                let share = surface.share[i];
+                let mass = if compliance > 0.0 {
+                    share / compliance
+                } else {
+                    0.0
+                };
+                let mass = mass.max(surface.body_mass[i]);
+                let point_layer = ContactLayer {
+                    stiffness: layer.stiffness * share,
+                    ..layer
+                };
+                *out = node_contacts(&point_layer, planes, caps, x, v, mass, dt);
+            };
+            // Small point sets stay on this thread: waking the pool costs more than the work.
+            if p.point_contact.len() > 2 * PAR_CHUNK {
+                p.point_contact
+                    .par_iter_mut()
+                    .with_min_len(PAR_CHUNK)
+                    .enumerate()
+                    .for_each(point);
+            } else {
+                p.point_contact.iter_mut().enumerate().for_each(point);
+            }
             p.surface_force
                 .iter_mut()
                 .for_each(|f| *f = Vector3::zeros());
@@ -606,6 +690,20 @@ impl World {
             }
             if !p.capsules.is_empty() {
                 acc.reaction_sum -= sum;
+            }
+        }
+
+        // Deformation damping: pull every node towards its body's rigid motion (serial fit in
+        // node order, so deterministic; momentum and angular momentum are kept exactly).
+        for body in bodies.iter().filter(|b| b.deformation_damping > 0.0) {
+            let rigid = rigid_motion(nodes, body.nodes.clone());
+            let pull = (body.deformation_damping * dt).min(1.0);
+            let (pos, vel) = (&nodes.position, &mut nodes.velocity);
+            for (v, x) in vel[body.nodes.clone()]
+                .iter_mut()
+                .zip(&pos[body.nodes.clone()])
+            {
+                *v += (rigid.velocity_at(x) - *v) * pull;
             }
         }
 
