@@ -58,7 +58,7 @@ struct Row {
     frames: u32,
 }
 
-fn run(nodes_per_side: u32, seconds: f64) -> Result<Row, String> {
+fn run(nodes_per_side: u32, preset: &str, seconds: f64) -> Result<Row, String> {
     let cells = nodes_per_side - 1;
     let (box_p, box_t) = box_mesh([-0.5, 0.0, -0.5], [0.5, 1.0, 0.5]);
     let lattice = fit_lattice(
@@ -70,7 +70,7 @@ fn run(nodes_per_side: u32, seconds: f64) -> Result<Row, String> {
         },
     )
     .map_err(|e| e.to_string())?;
-    let material = Material::preset("rubber").map_err(|e| e.to_string())?;
+    let material = Material::preset(preset).map_err(|e| e.to_string())?;
     let layer = WorldSettings::default_layer(lattice.cell_size, &material, 0.4);
     let mut world = World::new(WorldSettings {
         planes: vec![Plane {
@@ -83,12 +83,11 @@ fn run(nodes_per_side: u32, seconds: f64) -> Result<Row, String> {
     let handle = world.add_lattice_body("cube", &lattice, &material, Vector3::zeros());
     let (sp, st) = sphere(Vector3::new(0.0, 0.5, 0.0), 0.45, 63, 63);
     let embedding = Embedding::new(&lattice, &sp);
-    let mass = material.density_kg_m3 * lattice.volume();
     let mut manipulator = LiveManipulator::above(
         Vector3::new(-0.5, 0.0, -0.5),
         Vector3::new(0.5, 1.0, 0.5),
         Vector3::y(),
-        mass * 9.81,
+        material.young_pa,
     );
     // Start touching the top (the capsule's surface 2 mm into the cube).
     manipulator.centre.y = 1.0 + manipulator.radius - 0.002;
@@ -194,52 +193,73 @@ fn run(nodes_per_side: u32, seconds: f64) -> Result<Row, String> {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let seconds = args
-        .iter()
-        .position(|a| a == "--seconds")
-        .and_then(|i| args.get(i + 1))
+    let flag = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .cloned()
+    };
+    let seconds = flag("--seconds")
         .and_then(|s| s.parse().ok())
         .unwrap_or(3.0);
-    println!("live mode at a 30 fps refresh (T_i = 33.3 ms), rubber 1 m cube on the floor, capsule pressed into its top, {} threads", rayon_threads());
+    let materials: Vec<String> = flag("--materials")
+        .map(|m| m.split(',').map(str::to_owned).collect())
+        .unwrap_or_else(|| vec!["rubber".into(), "soft_rubber".into(), "jelly".into()]);
     println!(
-        "{:>6} {:>7} {:>8} {:>9} {:>9} {:>11} {:>10} {:>11} {:>9} {:>10} {:>9} {:>9}",
+        "live mode at a 30 fps refresh (T_i = 33.3 ms): 1 m cube on the floor, live capsule pressed into its top \
+         and dragged down 5 mm a frame against the reaction; {} threads, {seconds} s per row",
+        rayon_threads()
+    );
+    println!("T_c: one solver step; T_r: CPU draw prep of the window (7938-triangle embedded sphere); stable: the world's step bound;");
+    println!("cost/sim: T_c / stable (real time needs < 1); sim/real: simulated seconds per wall second at 30 fps; raster: 800x600 screenshot");
+    println!(
+        "{:<12} {:>6} {:>7} {:>8} {:>8} {:>7} {:>9} {:>8} {:>9} {:>8} {:>8} {:>11} {:>9}",
+        "material",
         "nodes",
         "total",
         "springs",
         "T_c ms",
         "T_r ms",
         "stable ms",
+        "cost/sim",
         "steps/fr",
         "steps/s",
         "sim/real",
         "reaction N",
-        "contact",
         "raster ms"
     );
-    for n in [8, 16, 32] {
-        match run(n, seconds) {
-            Ok(r) => {
-                let steps_per_s = (1.0 - 30.0 * r.draw_ms * 1e-3) / (r.step_ms * 1e-3);
-                println!(
-                    "{:>4}³ {:>7} {:>8} {:>9.3} {:>9.2} {:>11.3} {:>10} {:>11.0} {:>9.2} {:>10.1} {:>4}/{:<4} {:>9.1}",
-                    r.nodes_per_side,
-                    r.nodes,
-                    r.springs,
-                    r.step_ms,
-                    r.draw_ms,
-                    r.max_dt_ms,
-                    r.steps_per_frame,
-                    steps_per_s,
-                    r.realtime_factor,
-                    r.reaction_n,
-                    r.contact_frames,
-                    r.frames,
-                    r.raster_ms
-                );
-            }
-            Err(e) => {
-                eprintln!("{n}³: {e}");
-                std::process::exit(1);
+    for material in &materials {
+        for n in [8, 16, 32] {
+            match run(n, material, seconds) {
+                Ok(r) => {
+                    let steps_per_s = (1.0 - 30.0 * r.draw_ms * 1e-3) / (r.step_ms * 1e-3);
+                    println!(
+                        "{:<12} {:>5}³ {:>7} {:>8} {:>8.3} {:>7.2} {:>9.3} {:>8.2} {:>9} {:>8.0} {:>8.3} {:>11.1} {:>9.1}",
+                        material,
+                        r.nodes_per_side,
+                        r.nodes,
+                        r.springs,
+                        r.step_ms,
+                        r.draw_ms,
+                        r.max_dt_ms,
+                        r.step_ms / r.max_dt_ms,
+                        r.steps_per_frame,
+                        steps_per_s,
+                        r.realtime_factor,
+                        r.reaction_n,
+                        r.raster_ms
+                    );
+                    if r.contact_frames < r.frames / 2 {
+                        println!(
+                            "  (the capsule touched the body in only {}/{} frames)",
+                            r.contact_frames, r.frames
+                        );
+                    }
+                }
+                Err(e) => {
+                    eprintln!("{material} {n}³: {e}");
+                    std::process::exit(1);
+                }
             }
         }
     }

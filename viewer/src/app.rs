@@ -129,14 +129,13 @@ fn park(sim: &mut Simulation) {
 fn live_manipulator_for(sim: &Simulation) -> LiveManipulator {
     let meshes = sim.body_meshes();
     let (lo, hi) = bounds_of(meshes.iter().flat_map(|m| m.positions.iter())).unwrap_or_default();
-    let weight: f64 = sim
+    let young = sim
         .prepared
-        .body_reports()
+        .bodies
         .iter()
-        .map(|b| b.mass_kg)
-        .sum::<f64>()
-        * sim.loaded.scene.world.gravity.max(1.0);
-    LiveManipulator::above(lo, hi, sim.up(), weight)
+        .map(|b| b.material.young_pa)
+        .fold(0.0, f64::max);
+    LiveManipulator::above(lo, hi, sim.up(), young)
 }
 
 impl ViewerApp {

@@ -56,12 +56,14 @@ pub struct LiveManipulator {
 
 impl LiveManipulator {
     /// A capsule sized to a body with bounds `lo..hi`, parked just above it: radius 8 % and
-    /// axis 60 % of the largest extent. It stops advancing at 20× the body's weight.
+    /// axis 60 % of the largest extent. It stops advancing at the force that compresses the
+    /// body's material (Young's modulus `young_pa`) under the capsule's projected area
+    /// (2 r × length) by 20 %, so a stiff material resists sooner than jelly.
     pub fn above(
         lo: Vector3<f64>,
         hi: Vector3<f64>,
         up: Vector3<f64>,
-        body_weight_n: f64,
+        young_pa: f64,
     ) -> LiveManipulator {
         let size = (hi - lo).amax().max(1e-3);
         let centre_xy = (lo + hi) * 0.5;
@@ -75,7 +77,7 @@ impl LiveManipulator {
             length: 0.6 * size,
             friction: 0.4,
             up,
-            stop_force_n: (20.0 * body_weight_n).max(1e-3),
+            stop_force_n: (0.2 * young_pa * 2.0 * radius * 0.6 * size).max(1e-3),
             velocity: Vector3::zeros(),
         }
     }
@@ -253,14 +255,14 @@ mod tests {
             Vector3::new(-0.5, 0.0, -0.5),
             Vector3::new(0.5, 1.0, 0.5),
             Vector3::y(),
-            10.0,
+            1.0e4,
         );
         assert!(
             (m.centre - Vector3::new(0.0, 1.16, 0.0)).norm() < 1e-12,
             "{:?}",
             m.centre
         );
-        assert_eq!(m.stop_force_n, 200.0);
+        assert!((m.stop_force_n - 192.0).abs() < 1e-9, "{}", m.stop_force_n);
         let moved = m.update(
             &[
                 Gesture::Move(Vector3::new(0.1, 0.0, 0.0)),
@@ -277,10 +279,10 @@ mod tests {
             "yaw 90 about +Y: {:?}",
             c.axis
         );
-        // Pressing down against 100 N (half the stop force) advances half as far.
+        // Pressing down against 96 N (half the stop force) advances half as far.
         let moved = m.update(
             &[Gesture::Move(Vector3::new(0.0, -0.02, 0.0))],
-            Vector3::new(0.0, 100.0, 0.0),
+            Vector3::new(0.0, 96.0, 0.0),
             0.05,
         );
         assert!((moved.y + 0.01).abs() < 1e-12, "{moved:?}");
