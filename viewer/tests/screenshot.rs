@@ -1,8 +1,7 @@
 //! `render_screenshot` end to end: a scene with a falling cube renders to a PNG of the asked
 //! size, the object's pixels differ from the background (and from the floor) and the corners
-//! do not, the cube moves
-//! down the picture as it falls, and a baked glb's frame N (morph weights applied) matches the
-//! simulation's frame N. Also the live-reload watcher and the argument errors.
+//! do not, the cube moves down the picture as it falls, and a baked glb's frame N (morph
+//! weights applied) matches the simulation's frame N. Also the live-reload watcher and the argument errors.
 
 #![allow(clippy::unwrap_used)]
 
