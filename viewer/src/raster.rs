@@ -70,6 +70,7 @@ pub fn shade(
     let light = (proj.up * 0.7 - proj.right * 0.35 - proj.forward * 0.6).normalize();
     let mut out = Vec::new();
     for mesh in meshes {
+        let outward = closed_orientation(mesh);
         let screen: Vec<Option<ScreenPoint>> =
             mesh.positions.iter().map(|p| proj.project(p)).collect();
         for t in &mesh.triangles {
@@ -88,6 +89,11 @@ pub fn shade(
                 continue;
             }
             let centre = (pa + pb + pc) / 3.0;
+            // A closed mesh's faces turned away from the eye are hidden by its front faces:
+            // leave them out, so a painter's-order draw (the window) cannot show them.
+            if outward != 0.0 && outward * normal.dot(&(proj.eye - centre)) < 0.0 {
+                continue;
+            }
             let k = lambert(&(normal / len), &(proj.eye - centre), &light);
             let colour = mesh
                 .colour
@@ -99,6 +105,47 @@ pub fn shade(
         }
     }
     out
+}
+
+/// For a closed mesh (every edge, with coincident vertices welded, shared by exactly two
+/// triangles): +1 when its winding points normals outwards (positive signed volume), −1 when
+/// inwards; 0 for open meshes, whose both sides may show.
+pub fn closed_orientation(mesh: &DrawMesh) -> f64 {
+    use std::collections::HashMap;
+    let mut weld: HashMap<[u64; 3], u32> = HashMap::with_capacity(mesh.positions.len());
+    let ids: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let key = [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+            let next = weld.len() as u32;
+            *weld.entry(key).or_insert(next)
+        })
+        .collect();
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3);
+    let mut volume = 0.0;
+    for t in &mesh.triangles {
+        let Some(w) = t
+            .iter()
+            .map(|&i| ids.get(i as usize).copied())
+            .collect::<Option<Vec<u32>>>()
+        else {
+            return 0.0;
+        };
+        if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+            continue; // degenerate (a capsule's pole): no edge of a surface
+        }
+        for k in 0..3 {
+            let (a, b) = (w[k], w[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        volume += a.dot(&b.cross(&c));
+    }
+    if edges.is_empty() || edges.values().any(|&n| n != 2) || volume == 0.0 || !volume.is_finite() {
+        return 0.0;
+    }
+    volume.signum()
 }
 
 /// An 8-bit RGBA image, rows top to bottom.
@@ -328,7 +375,13 @@ pub fn capsule_mesh(capsule: &Capsule, segments: u32, rings: u32, colour: [u8; 3
             for s in 0..segments {
                 let theta = std::f64::consts::TAU * s as f64 / segments as f64;
                 let radial = u * theta.cos() + v * theta.sin();
-                positions.push(centre + axis * (r * phi.sin()) + radial * (r * phi.cos()));
+                let pole = (from < 0.0 && k == 0) || (from == 0.0 && k == rings);
+                positions.push(if pole {
+                    // Exactly one point, so the closed surface welds there.
+                    centre + axis * (r * phi.signum())
+                } else {
+                    centre + axis * (r * phi.sin()) + radial * (r * phi.cos())
+                });
             }
         }
     }
@@ -410,6 +463,52 @@ mod tests {
             let c = img.pixel(16, 16);
             assert!(c[0] > 0 && c[1] == 0, "red in front: {c:?}");
         }
+    }
+
+    fn cube(flip: bool) -> DrawMesh {
+        let (p, t) = springbake_core::shapes::box_mesh([0.0; 3], [1.0; 3]);
+        let triangles = t
+            .into_iter()
+            .map(|[a, b, c]| if flip { [a, c, b] } else { [a, b, c] })
+            .collect();
+        DrawMesh {
+            positions: p.iter().map(|q| q.coords).collect(),
+            triangles,
+            colour: [200, 200, 200],
+        }
+    }
+
+    #[test]
+    fn closed_meshes_know_their_winding_and_lose_their_back_faces() {
+        assert_eq!(closed_orientation(&cube(false)), 1.0);
+        assert_eq!(closed_orientation(&cube(true)), -1.0);
+        assert_eq!(closed_orientation(&quad(0.0, [1, 1, 1])), 0.0, "open");
+        let cam = OrbitCamera::new(Vector3::new(0.5, 0.5, 0.5), Vector3::y(), 4.0);
+        // Seen from a generic direction three faces (6 triangles) of a cube face the eye.
+        for flip in [false, true] {
+            assert_eq!(shade(&[cube(flip)], &cam, 100.0, 100.0).len(), 6);
+        }
+        // An open quad keeps both sides.
+        assert_eq!(
+            shade(&[quad(0.0, [1, 1, 1])], &front_camera(), 100.0, 100.0).len(),
+            2
+        );
+        let mut back = front_camera();
+        back.yaw_deg = 90.0;
+        assert_eq!(shade(&[quad(0.0, [1, 1, 1])], &back, 100.0, 100.0).len(), 2);
+        // A capsule (closed, poles welded) is closed too.
+        let cap = Capsule {
+            centre: Vector3::zeros(),
+            axis: Vector3::x(),
+            length: 1.0,
+            radius: 0.2,
+            velocity: Vector3::zeros(),
+            friction: 0.0,
+        };
+        assert_ne!(
+            closed_orientation(&capsule_mesh(&cap, 12, 4, CAPSULE_COLOUR)),
+            0.0
+        );
     }
 
     #[test]
