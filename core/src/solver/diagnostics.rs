@@ -4,11 +4,17 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 /// What one step did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StepStats {
     pub dispersion_corrections: u64,
     pub dispersion_iterations: u32,
     pub dispersion_cap_hit: bool,
+    /// Newmark-β predictor-corrector iterations (0 under symplectic Euler).
+    pub newmark_iterations: u32,
+    /// The Newmark iterations stopped at the cap without reaching the tolerance.
+    pub newmark_cap_hit: bool,
+    /// Largest relative volume error of the volume-preserved bodies before their correction.
+    pub volume_error: f64,
 }
 
 /// Diagnostics of one output frame.

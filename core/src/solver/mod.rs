@@ -1,26 +1,36 @@
 //! The mass-spring solver (Miyazaki et al. 1996): node state in structure-of-arrays, springs
 //! with dampers, gravity, elastic-layer contact with friction, the velocity-dispersion fusion
-//! model, and symplectic-Euler stepping with substeps chosen from the accuracy bound.
+//! model, and symplectic-Euler stepping with substeps chosen from the accuracy bound; Terasawa's
+//! analysis-model options: Newmark-β integration, pin/trajectory constraints, a wind field and
+//! volume preservation.
 //!
 //! All bodies of a scene live in one [`World`]: their nodes are concatenated (a body is a range
 //! of nodes), so one step is one pass over all nodes and springs. Every parallel loop writes
 //! disjoint slots and every reduction runs in fixed-size chunks, so results are identical bit
 //! for bit whatever the thread count.
 
+pub mod constraints;
 mod contact;
 pub mod deformation_damping;
 pub mod diagnostics;
 mod forces;
 pub mod manipulator;
 pub mod miyazaki1996_velocity_dispersion;
+pub mod newmark;
 pub mod substeps;
+pub mod volume;
 mod world;
 
+pub use constraints::{
+    nearest_node, nodes_in_box, ConstraintError, Interpolation, Path, TrajectoryConstraint, Wind,
+};
 pub use contact::{ContactLayer, Plane};
 pub use diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 pub use manipulator::{Capsule, ManipulatorTrack};
 pub use miyazaki1996_velocity_dispersion::DispersionMode;
+pub use newmark::Integrator;
 pub use substeps::{max_k_over_m, realtime_steps, SubstepChoice};
+pub use volume::VolumeConstraint;
 pub use world::{BodyHandle, BodyInfo, World, WorldSettings};
 
 use nalgebra::Vector3;

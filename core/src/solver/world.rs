@@ -2,6 +2,7 @@
 //! stepping loop (symplectic Euler, Miyazaki §3.4 order: forces → velocity update → velocity
 //! dispersion → position update).
 
+use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{node_contacts, ContactLayer, Plane};
 use super::deformation_damping::rigid_motion;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
@@ -10,7 +11,9 @@ use super::manipulator::{Capsule, ManipulatorTrack};
 use super::miyazaki1996_velocity_dispersion::{
     disperse_with, DispersionMode, DispersionScratch, SpringColouring, SpringHints,
 };
+use super::newmark::{Integrator, NewmarkState};
 use super::substeps::{accuracy_step, SubstepChoice};
+use super::volume::{cells_volume, correct_volume, VolumeConstraint};
 use super::{deterministic_sum, parallel_max, NodeState, SpringSet, PAR_CHUNK};
 use crate::lattice::Lattice;
 use crate::material::Material;
@@ -37,6 +40,10 @@ pub struct WorldSettings {
     /// Automatic substeps also keep every node's travel per substep under this fraction of the
     /// shortest spring (physics §7b, "substeps from node speeds").
     pub max_travel_fraction: f64,
+    /// Time integration (default: symplectic Euler, today's behaviour bit for bit).
+    pub integrator: Integrator,
+    /// Air drag towards a gusting wind on every node (default: none).
+    pub wind: Option<Wind>,
 }
 
 impl Default for WorldSettings {
@@ -56,6 +63,8 @@ impl Default for WorldSettings {
             accuracy_n: 10.0,
             fixed_substeps: None,
             max_travel_fraction: 0.2,
+            integrator: Integrator::SymplecticEuler,
+            wind: None,
         }
     }
 }
@@ -108,6 +117,12 @@ pub struct World {
     /// Per node: whether the node itself takes rigid contacts (false for the nodes of a body
     /// with a contact surface: its mesh touches the floor, not its lattice).
     pub node_contact: Vec<bool>,
+    /// Pin and trajectory constraints (see [`super::constraints`]), applied in order.
+    pub constraints: Vec<TrajectoryConstraint>,
+    /// Bodies whose volume is preserved (see [`super::volume`]).
+    pub volume: Vec<VolumeConstraint>,
+    /// Newmark-β state (the previous step's accelerations), once a Newmark step ran.
+    pub(crate) newmark: Option<NewmarkState>,
     prepared: Option<Prepared>,
 }
 
@@ -212,6 +227,9 @@ impl World {
             time: 0.0,
             surface: SurfacePoints::default(),
             node_contact: Vec::new(),
+            constraints: Vec::new(),
+            volume: Vec::new(),
+            newmark: None,
             prepared: None,
         }
     }
@@ -497,6 +515,84 @@ impl World {
     /// once the prepared buffers exist; every parallel loop runs over fixed chunks, so the
     /// result does not depend on the thread count.
     fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        let mut stats = match self.settings.integrator {
+            Integrator::SymplecticEuler if self.constraints.is_empty() => self.euler_step(dt, acc),
+            Integrator::SymplecticEuler => {
+                let t = self.time;
+                let before: Vec<Vec<Vector3<f64>>> = self
+                    .constraints
+                    .iter()
+                    .map(|c| c.nodes.iter().map(|&i| self.nodes.position[i]).collect())
+                    .collect();
+                let stats = self.euler_step(dt, acc);
+                // Enforce the paths on the stepped state (module docs of `constraints`).
+                for (c, old) in self.constraints.iter().zip(&before) {
+                    let s = c.strength;
+                    for (j, &i) in c.nodes.iter().enumerate() {
+                        let target = c.target(j, t + dt);
+                        let v_target = (target - old[j]) / dt;
+                        if s >= 1.0 {
+                            self.nodes.position[i] = target;
+                            self.nodes.velocity[i] = v_target;
+                        } else {
+                            let (x, v) = (self.nodes.position[i], self.nodes.velocity[i]);
+                            self.nodes.position[i] = x + (target - x) * s;
+                            self.nodes.velocity[i] = v + (v_target - v) * s;
+                        }
+                    }
+                }
+                stats
+            }
+            Integrator::Newmark {
+                beta,
+                tolerance,
+                max_iterations,
+            } => {
+                let out = super::newmark::step(self, dt, beta, tolerance, max_iterations);
+                self.time += dt;
+                acc.max_depth = acc.max_depth.max(out.max_depth);
+                acc.steps += 1;
+                StepStats {
+                    newmark_iterations: out.iterations,
+                    newmark_cap_hit: out.cap_hit,
+                    ..StepStats::default()
+                }
+            }
+        };
+        // Volume preservation after the unconstrained step (Terasawa §3.2).
+        for vc in &mut self.volume {
+            let Some(body) = self.bodies.get(vc.body) else {
+                continue;
+            };
+            let previous = vc.target;
+            let goal = vc.scale * vc.rest_volume;
+            let most = vc.max_rate * vc.rest_volume * dt;
+            vc.target += (goal - vc.target).clamp(-most, most);
+            let now = cells_volume(&body.cells, &self.nodes.position);
+            // Velocity only for the share of the correction that undoes this step's drift.
+            let total = vc.target - now;
+            let fraction = if total != 0.0 {
+                ((previous - now) / total).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            correct_volume(
+                &mut self.nodes,
+                &body.cells,
+                body.nodes.clone(),
+                vc.target,
+                vc.iterations,
+                dt,
+                fraction,
+            );
+            let drift = 1.0 - now / previous;
+            stats.volume_error = stats.volume_error.max(drift.abs());
+        }
+        stats
+    }
+
+    /// Miyazaki's symplectic-Euler step (module docs).
+    fn euler_step(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
         let gravity = self.settings.gravity;
         let layer = self.settings.layer;
         let dispersion = self.settings.dispersion;
@@ -522,6 +618,7 @@ impl World {
             .extend(manipulators.iter().map(|m| m.capsule_at(time)));
         p.capsules.extend(live_capsules.iter().copied());
         let has_contact = !settings.planes.is_empty() || !p.capsules.is_empty();
+        let wind = settings.wind.map(|w| (w, w.air_velocity(time)));
 
         let hinted = dispersion != DispersionMode::Off && p.hints_enabled;
         spring_forces(
@@ -665,6 +762,9 @@ impl World {
                         if surface_contact {
                             f += surface_force[i];
                         }
+                        if let Some((w, air)) = wind {
+                            f += w.force(air, *v, mass[i]);
+                        }
                         if has_contact && node_contact[i] {
                             let (cf, d, fc) =
                                 node_contacts(&layer, planes, caps, pos[i], *v, mass[i], dt);
@@ -752,6 +852,7 @@ impl World {
             dispersion_corrections: d.corrections,
             dispersion_iterations: d.iterations,
             dispersion_cap_hit: d.hit_cap,
+            ..StepStats::default()
         }
     }
 
@@ -862,6 +963,88 @@ impl World {
             total += p.bytes();
         }
         total
+    }
+
+    /// Bind `nodes` (world indices) to `path` with `strength` in [0, 1] (1: exact); each node
+    /// keeps its current offset from the path's position now. Returns the constraint's index.
+    pub fn add_trajectory(
+        &mut self,
+        nodes: &[usize],
+        path: Path,
+        strength: f64,
+    ) -> Result<usize, ConstraintError> {
+        if !(0.0..=1.0).contains(&strength) {
+            return Err(ConstraintError::BadStrength(strength));
+        }
+        if nodes.is_empty() {
+            return Err(ConstraintError::NoNodes);
+        }
+        let count = self.nodes.len();
+        if let Some(&node) = nodes.iter().find(|&&i| i >= count) {
+            return Err(ConstraintError::NodeOutOfRange { node, count });
+        }
+        let here = path.at(self.time);
+        let offsets = nodes
+            .iter()
+            .map(|&i| self.nodes.position[i] - here)
+            .collect();
+        self.constraints.push(TrajectoryConstraint {
+            nodes: nodes.to_vec(),
+            offsets,
+            path,
+            strength,
+        });
+        Ok(self.constraints.len() - 1)
+    }
+
+    /// Pin `nodes` where they are now (a constant path, exact).
+    pub fn pin(&mut self, nodes: &[usize]) -> Result<usize, ConstraintError> {
+        let at = nodes
+            .first()
+            .and_then(|&i| self.nodes.position.get(i))
+            .copied()
+            .unwrap_or_else(Vector3::zeros);
+        self.add_trajectory(nodes, Path::constant(at), 1.0)
+    }
+
+    /// Hold `body`'s volume at `scale` × its volume now (lattice bodies; 3 Newton iterations
+    /// per step; the target moves from the present volume to the scaled one at 2 V0/s).
+    pub fn preserve_volume(&mut self, body: BodyHandle, scale: f64) -> Result<(), ConstraintError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(ConstraintError::BadVolumeScale(scale));
+        }
+        let info = self
+            .bodies
+            .get(body.0)
+            .ok_or(ConstraintError::BodyOutOfRange(body.0))?;
+        if info.cells.is_empty() {
+            return Err(ConstraintError::NoCells(info.name.clone()));
+        }
+        let volume = cells_volume(&info.cells, &self.nodes.position);
+        if volume.is_nan() || volume <= 0.0 {
+            return Err(ConstraintError::BadRestVolume {
+                body: info.name.clone(),
+                volume,
+            });
+        }
+        self.volume.retain(|v| v.body != body.0);
+        self.volume.push(VolumeConstraint {
+            body: body.0,
+            rest_volume: volume,
+            scale,
+            iterations: 3,
+            max_rate: 2.0,
+            target: volume,
+        });
+        Ok(())
+    }
+
+    /// Enclosed volume of a lattice body now (sum of its cells' signed volumes), m³.
+    pub fn body_volume(&self, body: BodyHandle) -> f64 {
+        self.bodies
+            .get(body.0)
+            .map(|b| cells_volume(&b.cells, &self.nodes.position))
+            .unwrap_or(0.0)
     }
 
     /// Total linear momentum.

@@ -1,0 +1,228 @@
+//! Newmark-β integration (physics §8, Terasawa eq 2.27–2.28), an alternative to the default
+//! symplectic Euler step.
+//!
+//! With γ = ½ and the acceleration `a_n` of the previous step:
+//! `x_{n+1} = x_n + Δt v_n + Δt² ((½ − β) a_n + β a_{n+1})`,
+//! `v_{n+1} = v_n + Δt (a_n + a_{n+1}) / 2`.
+//! `a_{n+1}` is found by the iterative predictor-corrector: start from `a_n`, predict the state,
+//! evaluate the forces there (gravity, springs with their dampers, wind, the contacts of nodes
+//! with the planes and manipulators), correct `a_{n+1} = F/m`, until the largest change of any
+//! node's acceleration is at most `tolerance × max(|a|∞, 1 m/s²)` or `max_iterations` is reached
+//! (reported in [`super::StepStats`]). β = ¼ is the average-acceleration (energy-conserving)
+//! rule, β = ⅙ the linear-acceleration rule.
+//!
+//! Trajectory constraints replace the acceleration of their nodes by eq 3.1 (see
+//! [`super::constraints`]), so a node with strength 1 lands on its path exactly.
+//!
+//! Not in this integrator (use symplectic Euler for them): the velocity-dispersion fusion
+//! model, the deformation damping towards the rigid motion, and the contacts of display-surface
+//! points (bodies given a contact surface take no rigid contacts under Newmark-β).
+
+use super::constraints::TrajectoryConstraint;
+use super::contact::node_contacts;
+use super::forces::{gathered_spring_force, spring_forces, Adjacency};
+use super::manipulator::Capsule;
+use super::{NodeState, World};
+use nalgebra::Vector3;
+
+/// Time integration scheme of a [`World`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Integrator {
+    /// Miyazaki's symplectic Euler with velocity dispersion (the default).
+    #[default]
+    SymplecticEuler,
+    /// Terasawa's iterative Newmark-β (module docs).
+    Newmark {
+        /// ¼ (average acceleration) or ⅙ (linear acceleration); any value in (0, ½].
+        beta: f64,
+        /// Relative tolerance on the change of the acceleration between iterations.
+        tolerance: f64,
+        max_iterations: u32,
+    },
+}
+
+impl Integrator {
+    /// Newmark-β with β = ¼, tolerance 1e-10, at most 50 iterations.
+    pub fn newmark() -> Integrator {
+        Integrator::Newmark {
+            beta: 0.25,
+            tolerance: 1e-10,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// Newmark state and scratch, kept between steps.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct NewmarkState {
+    /// a_n, one per node (recomputed from the forces when the node count changes).
+    acceleration: Vec<Vector3<f64>>,
+    next: Vec<Vector3<f64>>,
+    trial: NodeState,
+    spring_force: Vec<Vector3<f64>>,
+    adjacency: Adjacency,
+    /// (nodes, springs) the adjacency was built for.
+    built_for: (usize, usize),
+    capsules: Vec<Capsule>,
+}
+
+/// What one Newmark step did.
+pub(crate) struct NewmarkOutcome {
+    pub iterations: u32,
+    pub cap_hit: bool,
+    pub max_depth: f64,
+}
+
+/// Accelerations F/m at the state `trial` and time `t` into `out` (constrained nodes not yet
+/// applied); returns the deepest contact penetration.
+fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
+    let settings = &world.settings;
+    st.capsules.clear();
+    st.capsules
+        .extend(world.manipulators.iter().map(|m| m.capsule_at(t)));
+    st.capsules.extend(world.live_capsules.iter().copied());
+    spring_forces(&st.trial, &world.springs, &mut st.spring_force, None);
+    let has_contact = !settings.planes.is_empty() || !st.capsules.is_empty();
+    let air = settings.wind.map(|w| (w, w.air_velocity(t)));
+    let mut deepest = 0.0f64;
+    let trial = &st.trial;
+    for (i, a) in st.next.iter_mut().enumerate() {
+        let (x, v, m) = (trial.position[i], trial.velocity[i], trial.mass[i]);
+        let mut f =
+            settings.gravity * m + gathered_spring_force(&st.adjacency, &st.spring_force, i);
+        if let Some((w, air)) = air {
+            f += w.force(air, v, m);
+        }
+        if has_contact && world.node_contact[i] {
+            let (cf, d, _) =
+                node_contacts(&settings.layer, &settings.planes, &st.capsules, x, v, m, dt);
+            f += cf;
+            deepest = deepest.max(d);
+        }
+        *a = f * trial.inv_mass[i];
+    }
+    deepest
+}
+
+/// Eq 3.1: the acceleration that lands a node at `target` after `dt`.
+#[inline]
+fn landing_acceleration(
+    target: Vector3<f64>,
+    x: Vector3<f64>,
+    v: Vector3<f64>,
+    a: Vector3<f64>,
+    beta: f64,
+    dt: f64,
+) -> Vector3<f64> {
+    (target - x - v * dt - a * ((0.5 - beta) * dt * dt)) / (beta * dt * dt)
+}
+
+fn apply_constraints(
+    constraints: &[TrajectoryConstraint],
+    nodes: &NodeState,
+    a_n: &[Vector3<f64>],
+    next: &mut [Vector3<f64>],
+    t_next: f64,
+    beta: f64,
+    dt: f64,
+) {
+    for c in constraints {
+        for (j, &i) in c.nodes.iter().enumerate() {
+            let want = landing_acceleration(
+                c.target(j, t_next),
+                nodes.position[i],
+                nodes.velocity[i],
+                a_n[i],
+                beta,
+                dt,
+            );
+            next[i] = if c.strength >= 1.0 {
+                want
+            } else {
+                next[i] * (1.0 - c.strength) + want * c.strength
+            };
+        }
+    }
+}
+
+/// One Newmark-β step of `dt` (does not advance `world.time`).
+pub(crate) fn step(
+    world: &mut World,
+    dt: f64,
+    beta: f64,
+    tolerance: f64,
+    max_iterations: u32,
+) -> NewmarkOutcome {
+    let mut st = world.newmark.take().unwrap_or_default();
+    let n = world.nodes.len();
+    let t = world.time;
+    if st.built_for != (n, world.springs.len()) {
+        st.adjacency = Adjacency::new(n, &world.springs);
+        st.spring_force = vec![Vector3::zeros(); world.springs.len()];
+        st.built_for = (n, world.springs.len());
+    }
+    st.trial.clone_from(&world.nodes);
+    st.next.resize(n, Vector3::zeros());
+    if st.acceleration.len() != n {
+        accelerations(world, &mut st, t, dt);
+        st.acceleration.clone_from(&st.next);
+    }
+    st.next.clone_from(&st.acceleration);
+    let (h, h2) = (dt, dt * dt);
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut max_depth = 0.0;
+    let mut guess = st.next.clone();
+    while iterations < max_iterations.max(1) {
+        iterations += 1;
+        // Predict at the current guess of a_{n+1}.
+        for (i, g) in guess.iter().enumerate() {
+            let (x, v, a) = (
+                world.nodes.position[i],
+                world.nodes.velocity[i],
+                st.acceleration[i],
+            );
+            st.trial.position[i] = x + v * h + (a * (0.5 - beta) + g * beta) * h2;
+            st.trial.velocity[i] = v + (a + g) * (0.5 * h);
+        }
+        max_depth = accelerations(world, &mut st, t + dt, dt);
+        apply_constraints(
+            &world.constraints,
+            &world.nodes,
+            &st.acceleration,
+            &mut st.next,
+            t + dt,
+            beta,
+            dt,
+        );
+        let (mut change, mut size) = (0.0f64, 1.0f64);
+        for (a, g) in st.next.iter().zip(&guess) {
+            let d = (a - g).amax();
+            // NaN-safe: a NaN change never counts as converged.
+            change = if d > change || d.is_nan() { d } else { change };
+            size = size.max(a.amax());
+        }
+        std::mem::swap(&mut guess, &mut st.next);
+        if change <= tolerance * size {
+            converged = true;
+            break;
+        }
+    }
+    // Correct with the final a_{n+1}.
+    for (i, g) in guess.iter().enumerate() {
+        let (x, v, a) = (
+            world.nodes.position[i],
+            world.nodes.velocity[i],
+            st.acceleration[i],
+        );
+        world.nodes.position[i] = x + v * h + (a * (0.5 - beta) + g * beta) * h2;
+        world.nodes.velocity[i] = v + (a + g) * (0.5 * h);
+    }
+    st.acceleration = guess;
+    world.newmark = Some(st);
+    NewmarkOutcome {
+        iterations,
+        cap_hit: !converged,
+        max_depth,
+    }
+}
