@@ -14,12 +14,18 @@
 //! Trajectory constraints replace the acceleration of their nodes by eq 3.1 (see
 //! [`super::constraints`]), so a node with strength 1 lands on its path exactly.
 //!
+//! Contacts take the predicted positions but the explicit predictor velocity `v_n + Δt a_n`
+//! (fixed during the iterations) for their dampers and friction: the friction cap ("cannot
+//! reverse the sliding within one step", `m |v_t| / Δt`) fed by the iterated velocity makes the
+//! fixed-point iteration oscillate instead of converging. Contacts of display-surface points
+//! (bodies given a contact surface) are evaluated like the node contacts, spread onto their
+//! cells' nodes by the trilinear weights, without the symplectic step's broad phase.
+//!
 //! Not in this integrator (use symplectic Euler for them): the velocity-dispersion fusion
-//! model, the deformation damping towards the rigid motion, and the contacts of display-surface
-//! points (bodies given a contact surface take no rigid contacts under Newmark-β).
+//! model and the deformation damping towards the rigid motion.
 
 use super::constraints::TrajectoryConstraint;
-use super::contact::node_contacts;
+use super::contact::{node_contacts, ContactLayer};
 use super::forces::{gathered_spring_force, spring_forces, Adjacency};
 use super::manipulator::Capsule;
 use super::{NodeState, World};
@@ -64,6 +70,10 @@ pub(crate) struct NewmarkState {
     /// (nodes, springs) the adjacency was built for.
     built_for: (usize, usize),
     capsules: Vec<Capsule>,
+    /// Per node: the surface points' contact forces spread onto it.
+    surface_force: Vec<Vector3<f64>>,
+    /// Per node: the explicit predictor velocity v_n + Δt a_n, for the contacts.
+    contact_velocity: Vec<Vector3<f64>>,
 }
 
 /// What one Newmark step did.
@@ -86,6 +96,48 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
     let air = settings.wind.map(|w| (w, w.air_velocity(t)));
     let mut deepest = 0.0f64;
     let trial = &st.trial;
+    let surface = &world.surface;
+    let surface_contact = has_contact && !surface.is_empty();
+    if surface_contact {
+        st.surface_force.clear();
+        st.surface_force.resize(trial.len(), Vector3::zeros());
+        let layer = settings.layer;
+        for i in 0..surface.len() {
+            let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
+            let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
+            for c in 0..8 {
+                let n = ids[c] as usize;
+                x += trial.position[n] * w[c];
+                v += st.contact_velocity[n] * w[c];
+                compliance += w[c] * w[c] * trial.inv_mass[n];
+            }
+            let share = surface.share[i];
+            let mass = if compliance > 0.0 {
+                share / compliance
+            } else {
+                0.0
+            };
+            let point_layer = ContactLayer {
+                stiffness: layer.stiffness * share,
+                ..layer
+            };
+            let (f, d, _) = node_contacts(
+                &point_layer,
+                &settings.planes,
+                &st.capsules,
+                x,
+                v,
+                mass.max(surface.body_mass[i]),
+                dt,
+            );
+            deepest = deepest.max(d);
+            if f != Vector3::zeros() {
+                for c in 0..8 {
+                    st.surface_force[ids[c] as usize] += f * w[c];
+                }
+            }
+        }
+    }
     for (i, a) in st.next.iter_mut().enumerate() {
         let (x, v, m) = (trial.position[i], trial.velocity[i], trial.mass[i]);
         let mut f =
@@ -93,9 +145,19 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
         if let Some((w, air)) = air {
             f += w.force(air, v, m);
         }
+        if surface_contact {
+            f += st.surface_force[i];
+        }
         if has_contact && world.node_contact[i] {
-            let (cf, d, _) =
-                node_contacts(&settings.layer, &settings.planes, &st.capsules, x, v, m, dt);
+            let (cf, d, _) = node_contacts(
+                &settings.layer,
+                &settings.planes,
+                &st.capsules,
+                x,
+                st.contact_velocity[i],
+                m,
+                dt,
+            );
             f += cf;
             deepest = deepest.max(d);
         }
@@ -164,9 +226,19 @@ pub(crate) fn step(
     st.trial.clone_from(&world.nodes);
     st.next.resize(n, Vector3::zeros());
     if st.acceleration.len() != n {
+        st.contact_velocity.clone_from(&world.nodes.velocity);
         accelerations(world, &mut st, t, dt);
         st.acceleration.clone_from(&st.next);
     }
+    st.contact_velocity.clear();
+    st.contact_velocity.extend(
+        world
+            .nodes
+            .velocity
+            .iter()
+            .zip(&st.acceleration)
+            .map(|(v, a)| v + a * dt),
+    );
     st.next.clone_from(&st.acceleration);
     let (h, h2) = (dt, dt * dt);
     let mut iterations = 0;
