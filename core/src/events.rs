@@ -666,15 +666,7 @@ impl EventQueue {
     /// Parse the TOML form (`[[event]]` tables, see the module doc) and validate it.
     pub fn from_toml(text: &str) -> Result<EventQueue, EventError> {
         let file: EventsFile = toml::from_str(text).map_err(|e| {
-            let (line, column) = match e.span() {
-                Some(span) => {
-                    let before = &text[..span.start.min(text.len())];
-                    let line = before.matches('\n').count() + 1;
-                    let column = before.len() - before.rfind('\n').map(|i| i + 1).unwrap_or(0) + 1;
-                    (Some(line), Some(column))
-                }
-                None => (None, None),
-            };
+            let (line, column) = crate::scene::toml_error_position(text, &e);
             EventError {
                 location: match (line, column) {
                     (Some(l), Some(c)) => format!("line {l}, column {c}"),

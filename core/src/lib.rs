@@ -16,5 +16,6 @@ pub mod scene;
 pub use nalgebra;
 pub mod events;
 pub mod hertz;
+pub mod polygon;
 pub mod shapes;
 pub mod solver;

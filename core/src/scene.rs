@@ -343,19 +343,27 @@ pub struct SceneParseError {
     pub column: Option<usize>,
 }
 
+/// 1-based line and column of a TOML error in `text`, when the error has a span.
+pub(crate) fn toml_error_position(
+    text: &str,
+    e: &toml::de::Error,
+) -> (Option<usize>, Option<usize>) {
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map(|i| i + 1).unwrap_or(0) + 1;
+            (Some(line), Some(column))
+        }
+        None => (None, None),
+    }
+}
+
 impl SceneFile {
     /// Parse TOML text. Errors carry 1-based line and column.
     pub fn parse(text: &str) -> Result<SceneFile, SceneParseError> {
         toml::from_str::<SceneFile>(text).map_err(|e| {
-            let (line, column) = match e.span() {
-                Some(span) => {
-                    let before = &text[..span.start.min(text.len())];
-                    let line = before.matches('\n').count() + 1;
-                    let column = before.len() - before.rfind('\n').map(|i| i + 1).unwrap_or(0) + 1;
-                    (Some(line), Some(column))
-                }
-                None => (None, None),
-            };
+            let (line, column) = toml_error_position(text, &e);
             let message = e.message().to_owned();
             SceneParseError {
                 message: match (line, column) {
