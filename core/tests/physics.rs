@@ -173,23 +173,29 @@ fn cube_dropped_on_the_floor_comes_to_rest() {
     );
 }
 
-/// A vertical chain of 4 springs (physics §7b): L = 0.1 m, k = 2000 N/m, m = 0.05 kg, floor
-/// layer 1.5·10⁴ N/m, ΔT = 1 ms, no damping, dropped onto the floor at `v0`. Returns whether
-/// the nodes kept their order along up throughout.
-fn chain_keeps_order(mode: DispersionMode, v0: f64) -> bool {
+/// The world of physics §7b's check: gravity, a floor whose elastic layer is 1.5·10⁴ N/m,
+/// undamped, frictionless.
+fn section_7b_world(mode: DispersionMode) -> World {
     let layer = ContactLayer {
         thickness_m: 0.05,
         stiffness: 1.5e4,
         damping_ratio: 0.0,
         friction: 0.0,
     };
-    let mut w = World::new(WorldSettings {
+    World::new(WorldSettings {
         planes: vec![floor(0.0)],
         layer,
         dispersion: mode,
         max_dispersion_iterations: 100,
         ..no_contact(9.81)
-    });
+    })
+}
+
+/// A vertical chain of 4 springs (physics §7b): L = 0.1 m, k = 2000 N/m, m = 0.05 kg, floor
+/// layer 1.5·10⁴ N/m, ΔT = 1 ms, no damping, dropped onto the floor at `v0`. Returns whether
+/// the nodes kept their order along up throughout.
+fn chain_keeps_order(mode: DispersionMode, v0: f64) -> bool {
+    let mut w = section_7b_world(mode);
     let positions: Vec<Vector3<f64>> = (0..5)
         .map(|i| Vector3::new(0.0, 0.001 + 0.1 * i as f64, 0.0))
         .collect();
@@ -231,19 +237,7 @@ fn fusion_model_keeps_the_chains_order_where_springs_alone_flip() {
 /// A triangle of 3 springs in the vertical plane, base down, dropped at `v0` (Fig. 6).
 /// Returns whether its orientation (signed area) never flipped.
 fn triangle_keeps_orientation(mode: DispersionMode, v0: f64) -> bool {
-    let layer = ContactLayer {
-        thickness_m: 0.05,
-        stiffness: 1.5e4,
-        damping_ratio: 0.0,
-        friction: 0.0,
-    };
-    let mut w = World::new(WorldSettings {
-        planes: vec![floor(0.0)],
-        layer,
-        dispersion: mode,
-        max_dispersion_iterations: 100,
-        ..no_contact(9.81)
-    });
+    let mut w = section_7b_world(mode);
     let h = 0.1 * 3f64.sqrt() / 2.0;
     let positions = vec![
         Vector3::new(-0.05, 0.001, 0.0),
