@@ -485,3 +485,134 @@ fn newmark_body_rests_on_its_contact_surface_with_the_same_bits_on_any_thread_co
     assert!(lowest > -0.02 && lowest < 0.02, "{lowest}");
     assert!(one == all, "thread count changed the result");
 }
+
+fn box_lattice(hi: [f64; 3], cells: u32) -> springbake_core::lattice::Lattice {
+    let (p, t) = box_mesh([0.0, 0.0, 0.0], hi);
+    fit_lattice(
+        &p,
+        &t,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(cells),
+            ..FitSettings::default()
+        },
+    )
+    .unwrap()
+}
+
+fn largest_distance_change(w: &World, rest: &[Vector3<f64>]) -> f64 {
+    let x = &w.nodes.position;
+    let mut worst = 0.0f64;
+    for i in 0..x.len() {
+        for j in (i + 1)..x.len() {
+            let d = (x[i] - x[j]).norm() - (rest[i] - rest[j]).norm();
+            worst = worst.max(d.abs());
+        }
+    }
+    worst
+}
+
+#[test]
+fn rigid_box_tumbles_about_its_intermediate_axis_keeping_its_shape() {
+    // A 0.4 × 0.2 × 0.1 m box spun mostly about its intermediate (y) axis in zero gravity:
+    // the rotation is unstable and flips (Dzhanibekov), with L and the shape kept.
+    let lattice = box_lattice([0.4, 0.2, 0.1], 4);
+    let m = Material::preset("rubber").unwrap();
+    let mut w = World::new(zero_g(Integrator::SymplecticEuler));
+    let body = w.add_lattice_body("box", &lattice, &m, Vector3::zeros());
+    let mass: f64 = w.nodes.mass.iter().sum();
+    let centre = |w: &World| {
+        w.nodes
+            .position
+            .iter()
+            .zip(&w.nodes.mass)
+            .map(|(x, m)| x * *m)
+            .sum::<Vector3<f64>>()
+            / mass
+    };
+    let c0 = centre(&w);
+    let omega0 = Vector3::new(0.3, 5.0, 0.2);
+    for i in 0..w.nodes.len() {
+        w.nodes.velocity[i] =
+            Vector3::new(0.1, 0.0, 0.0) + omega0.cross(&(w.nodes.position[i] - c0));
+    }
+    w.make_rigid(body).unwrap();
+    let rest = w.nodes.position.clone();
+    let momentum = |w: &World| {
+        let c = centre(w);
+        (0..w.nodes.len())
+            .map(|i| (w.nodes.position[i] - c).cross(&w.nodes.velocity[i]) * w.nodes.mass[i])
+            .sum::<Vector3<f64>>()
+    };
+    let l0 = momentum(&w);
+    let e0 = w.total_energy();
+    let (mut worst_shape, mut worst_l, mut worst_e) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut min_wy, mut max_wy) = (f64::INFINITY, f64::NEG_INFINITY);
+    for frame in 1..=240 {
+        w.advance_frame(1.0 / 60.0, frame, &|| false).unwrap();
+        worst_shape = worst_shape.max(largest_distance_change(&w, &rest));
+        worst_l = worst_l.max((momentum(&w) - l0).norm() / l0.norm());
+        worst_e = worst_e.max((w.total_energy() / e0 - 1.0).abs());
+        let r = &w.rigid[0];
+        let body_omega = r.orientation.inverse() * r.angular_velocity();
+        min_wy = min_wy.min(body_omega.y);
+        max_wy = max_wy.max(body_omega.y);
+    }
+    let drift = centre(&w) - c0 - Vector3::new(0.1, 0.0, 0.0) * w.time;
+    println!(
+        "rigid tumble: distance change {worst_shape:.2e} m, |ΔL|/|L| {worst_l:.2e}, energy \
+         drift {worst_e:.2e}, body ω_y {min_wy:.3}..{max_wy:.3} rad/s, centre drift {:.2e} m",
+        drift.norm()
+    );
+    assert!(worst_shape < 1e-9, "{worst_shape}");
+    assert!(worst_l < 1e-9, "{worst_l}");
+    assert!(worst_e < 0.02, "{worst_e}");
+    assert!(drift.norm() < 1e-9, "{drift}");
+    // The flip: the spin about y reverses.
+    assert!(max_wy > 4.0 && min_wy < -4.0, "{min_wy} {max_wy}");
+}
+
+#[test]
+fn rigid_cube_dropped_on_the_floor_lands_and_keeps_its_shape() {
+    let lattice = box_lattice([0.2, 0.2, 0.2], 3);
+    let m = Material::preset("rubber").unwrap();
+    for integrator in [Integrator::SymplecticEuler, Integrator::newmark()] {
+        let mut w = World::new(WorldSettings {
+            planes: vec![Plane {
+                normal: Vector3::y(),
+                offset: -0.3,
+            }],
+            layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+            integrator,
+            ..WorldSettings::default()
+        });
+        let body = w.add_lattice_body("cube", &lattice, &m, Vector3::new(0.5, 0.0, 0.0));
+        // Tilted spin so it lands on an edge.
+        let c0 = Vector3::new(0.1, 0.1, 0.1);
+        for i in 0..w.nodes.len() {
+            let arm = w.nodes.position[i] - c0;
+            w.nodes.velocity[i] += Vector3::new(2.0, 0.0, 3.0).cross(&arm);
+        }
+        w.make_rigid(body).unwrap();
+        let rest = w.nodes.position.clone();
+        let mut worst_shape = 0.0f64;
+        let mut lowest = f64::INFINITY;
+        for frame in 1..=120 {
+            w.advance_frame(1.0 / 60.0, frame, &|| false).unwrap();
+            worst_shape = worst_shape.max(largest_distance_change(&w, &rest));
+            lowest = w.nodes.position.iter().map(|x| x.y).fold(lowest, f64::min);
+        }
+        let c = w.rigid[0].centre;
+        println!(
+            "{integrator:?}: rigid drop: distance change {worst_shape:.2e} m, deepest point \
+             {:.4} m into the floor, centre at rest {:.4} m above it, speed {:.3} m/s",
+            -0.3 - lowest,
+            c.y + 0.3,
+            w.rigid[0].velocity.norm()
+        );
+        assert!(worst_shape < 1e-9, "{worst_shape}");
+        assert!(lowest > -0.3 - 0.5 * lattice.cell_size, "{lowest}");
+        // Came to rest on a face, the centre half a side above the floor.
+        assert!((c.y + 0.3 - 0.1).abs() < 0.01, "{}", c.y);
+        assert!(w.rigid[0].velocity.norm() < 0.05);
+    }
+}

@@ -42,6 +42,8 @@ pub enum ConstraintError {
     BodyOutOfRange(usize),
     #[error("body \"{0}\" has no lattice cells, so no volume to preserve")]
     NoCells(String),
+    #[error("body \"{0}\" cannot be rigid: it needs three non-collinear nodes, all with mass")]
+    NotRigid(String),
     #[error("volume scale must be finite and positive, got {0}")]
     BadVolumeScale(f64),
     #[error("body \"{body}\" has a non-positive rest volume {volume} m³")]

@@ -12,6 +12,7 @@ use super::miyazaki1996_velocity_dispersion::{
     disperse_with, DispersionMode, DispersionScratch, SpringColouring, SpringHints,
 };
 use super::newmark::{Integrator, NewmarkState};
+use super::rigid::RigidBody;
 use super::substeps::{accuracy_step, SubstepChoice};
 use super::volume::{cells_volume, correct_volume, VolumeConstraint};
 use super::{deterministic_sum, parallel_max, NodeState, SpringSet, PAR_CHUNK};
@@ -121,6 +122,9 @@ pub struct World {
     pub constraints: Vec<TrajectoryConstraint>,
     /// Bodies whose volume is preserved (see [`super::volume`]).
     pub volume: Vec<VolumeConstraint>,
+    /// Bodies stepped as rigid bodies (see [`super::rigid`]); path constraints and volume
+    /// preservation do not act on their nodes.
+    pub rigid: Vec<RigidBody>,
     /// Newmark-β state (the previous step's accelerations), once a Newmark step ran.
     pub(crate) newmark: Option<NewmarkState>,
     prepared: Option<Prepared>,
@@ -229,6 +233,7 @@ impl World {
             node_contact: Vec::new(),
             constraints: Vec::new(),
             volume: Vec::new(),
+            rigid: Vec::new(),
             newmark: None,
             prepared: None,
         }
@@ -515,6 +520,17 @@ impl World {
     /// once the prepared buffers exist; every parallel loop runs over fixed chunks, so the
     /// result does not depend on the thread count.
     fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        let rigid_before: Vec<Vec<(Vector3<f64>, Vector3<f64>)>> = self
+            .rigid
+            .iter()
+            .map(|r| {
+                self.bodies[r.body]
+                    .nodes
+                    .clone()
+                    .map(|i| (self.nodes.position[i], self.nodes.velocity[i]))
+                    .collect()
+            })
+            .collect();
         let mut stats = match self.settings.integrator {
             Integrator::SymplecticEuler if self.constraints.is_empty() => self.euler_step(dt, acc),
             Integrator::SymplecticEuler => {
@@ -559,11 +575,18 @@ impl World {
                 }
             }
         };
+        for (r, before) in self.rigid.iter_mut().zip(&rigid_before) {
+            let range = self.bodies[r.body].nodes.clone();
+            r.advance(&mut self.nodes, range, before, dt);
+        }
         // Volume preservation after the unconstrained step (Terasawa §3.2).
         for vc in &mut self.volume {
             let Some(body) = self.bodies.get(vc.body) else {
                 continue;
             };
+            if self.rigid.iter().any(|r| r.body == vc.body) {
+                continue;
+            }
             let previous = vc.target;
             let goal = vc.scale * vc.rest_volume;
             let most = vc.max_rate * vc.rest_volume * dt;
@@ -1036,6 +1059,20 @@ impl World {
             max_rate: 2.0,
             target: volume,
         });
+        Ok(())
+    }
+
+    /// Step `body` as a rigid body from now on, with the momentum and angular momentum its
+    /// nodes have now (see [`super::rigid`]).
+    pub fn make_rigid(&mut self, body: BodyHandle) -> Result<(), ConstraintError> {
+        let info = self
+            .bodies
+            .get(body.0)
+            .ok_or(ConstraintError::BodyOutOfRange(body.0))?;
+        let rigid = RigidBody::from_nodes(body.0, &self.nodes, info.nodes.clone())
+            .ok_or_else(|| ConstraintError::NotRigid(info.name.clone()))?;
+        self.rigid.retain(|r| r.body != body.0);
+        self.rigid.push(rigid);
         Ok(())
     }
 
