@@ -48,6 +48,31 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// Refuse parameters the step cannot use: β outside (0, ½], a tolerance that is not
+    /// positive and finite, or no iterations.
+    pub fn check(&self) -> Result<(), String> {
+        match *self {
+            Integrator::SymplecticEuler => Ok(()),
+            Integrator::Newmark {
+                beta,
+                tolerance,
+                max_iterations,
+            } => {
+                if !(beta > 0.0 && beta <= 0.5) {
+                    Err(format!("Newmark beta must be in (0, 0.5], got {beta}"))
+                } else if !(tolerance.is_finite() && tolerance > 0.0) {
+                    Err(format!(
+                        "Newmark tolerance must be finite and positive, got {tolerance}"
+                    ))
+                } else if max_iterations == 0 {
+                    Err("Newmark max_iterations must be at least 1".to_string())
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+
     /// Newmark-β with β = ¼, tolerance 1e-10, at most 50 iterations.
     pub fn newmark() -> Integrator {
         Integrator::Newmark {
@@ -74,6 +99,8 @@ pub(crate) struct NewmarkState {
     surface_force: Vec<Vector3<f64>>,
     /// Per node: the explicit predictor velocity v_n + Δt a_n, for the contacts.
     contact_velocity: Vec<Vector3<f64>>,
+    /// The current guess of a_{n+1}.
+    guess: Vec<Vector3<f64>>,
 }
 
 /// What one Newmark step did.
@@ -244,7 +271,8 @@ pub(crate) fn step(
     let mut iterations = 0;
     let mut converged = false;
     let mut max_depth = 0.0;
-    let mut guess = st.next.clone();
+    let mut guess = std::mem::take(&mut st.guess);
+    guess.clone_from(&st.next);
     while iterations < max_iterations.max(1) {
         iterations += 1;
         // Predict at the current guess of a_{n+1}.
@@ -290,11 +318,40 @@ pub(crate) fn step(
         world.nodes.position[i] = x + v * h + (a * (0.5 - beta) + g * beta) * h2;
         world.nodes.velocity[i] = v + (a + g) * (0.5 * h);
     }
-    st.acceleration = guess;
+    std::mem::swap(&mut st.acceleration, &mut guess);
+    st.guess = guess;
     world.newmark = Some(st);
     NewmarkOutcome {
         iterations,
         cap_hit: !converged,
         max_depth,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integrator_parameters_are_checked() {
+        assert!(Integrator::SymplecticEuler.check().is_ok());
+        assert!(Integrator::newmark().check().is_ok());
+        let with = |beta: f64, tolerance: f64, max_iterations: u32| Integrator::Newmark {
+            beta,
+            tolerance,
+            max_iterations,
+        };
+        assert!(with(1.0 / 6.0, 1e-8, 10).check().is_ok());
+        assert!(with(0.0, 1e-8, 10).check().unwrap_err().contains("beta"));
+        assert!(with(0.6, 1e-8, 10).check().is_err());
+        assert!(with(f64::NAN, 1e-8, 10).check().is_err());
+        assert!(with(0.25, 0.0, 10)
+            .check()
+            .unwrap_err()
+            .contains("tolerance"));
+        assert!(with(0.25, 1e-8, 0)
+            .check()
+            .unwrap_err()
+            .contains("max_iterations"));
     }
 }
