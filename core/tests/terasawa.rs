@@ -8,8 +8,8 @@ use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{
-    nearest_node, nodes_in_box, DispersionMode, Integrator, Interpolation, Path, Plane, Wind,
-    World, WorldSettings,
+    nearest_node, nodes_in_box, BodyHandle, DispersionMode, Integrator, Interpolation, Path, Plane,
+    Wind, World, WorldSettings,
 };
 
 fn zero_g(integrator: Integrator) -> WorldSettings {
@@ -615,4 +615,63 @@ fn rigid_cube_dropped_on_the_floor_lands_and_keeps_its_shape() {
         assert!((c.y + 0.3 - 0.1).abs() < 0.01, "{}", c.y);
         assert!(w.rigid[0].velocity.norm() < 0.05);
     }
+}
+
+/// Height of a 0.1 × 0.4 × 0.1 m soft-rubber column resting on the floor after 3 s, with its
+/// stiffness scaled by `scale` per axis; also checks an x edge and a y edge got their factor.
+fn column_height(scale: Vector3<f64>) -> f64 {
+    let lattice = box_lattice([0.1, 0.4, 0.1], 8);
+    let m = Material::preset("soft_rubber").unwrap();
+    let mut w = World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+        ..WorldSettings::default()
+    });
+    let body = w.add_lattice_body("column", &lattice, &m, Vector3::zeros());
+    let k0 = w.springs.stiffness.clone();
+    w.scale_stiffness_per_axis(body, scale).unwrap();
+    let mut seen = [false; 3];
+    for (s, k_before) in k0.iter().enumerate() {
+        let r =
+            w.nodes.position[w.springs.a[s] as usize] - w.nodes.position[w.springs.b[s] as usize];
+        for (axis, hit) in seen.iter_mut().enumerate() {
+            if (r[axis].abs() - r.norm()).abs() < 1e-12 {
+                let want = k_before * scale[axis];
+                assert!((w.springs.stiffness[s] - want).abs() <= 1e-12 * want);
+                *hit = true;
+            }
+        }
+    }
+    assert_eq!(seen, [true; 3]);
+    for frame in 1..=180 {
+        w.advance_frame(1.0 / 60.0, frame, &|| false).unwrap();
+    }
+    let ys = w.nodes.position.iter().map(|x| x.y);
+    ys.clone().fold(f64::NEG_INFINITY, f64::max) - ys.fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn per_axis_stiffness_scale_stiffens_the_column_along_that_axis() {
+    assert!(World::new(WorldSettings::default())
+        .scale_stiffness_per_axis(BodyHandle(0), Vector3::new(1.0, 0.0, 1.0))
+        .is_err());
+    let plain = 0.4 - column_height(Vector3::new(1.0, 1.0, 1.0));
+    let stiff_y = 0.4 - column_height(Vector3::new(1.0, 4.0, 1.0));
+    let stiff_x = 0.4 - column_height(Vector3::new(4.0, 1.0, 1.0));
+    println!(
+        "column sag under its weight: isotropic {plain:.3e} m, y ×4 {stiff_y:.3e} m, x ×4 \
+         {stiff_x:.3e} m"
+    );
+    assert!(plain > 1e-4, "{plain}");
+    // Edges along y carry the load with the diagonals (which get 2.5× or 2×): between.
+    let ratio = plain / stiff_y;
+    assert!(ratio > 2.0 && ratio < 4.5, "{ratio}");
+    // Stiffening across the load changes the sag much less.
+    assert!(
+        stiff_x > stiff_y * 1.5 && stiff_x <= plain * 1.01,
+        "{stiff_x}"
+    );
 }

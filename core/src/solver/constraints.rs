@@ -44,6 +44,8 @@ pub enum ConstraintError {
     NoCells(String),
     #[error("body \"{0}\" cannot be rigid: it needs three non-collinear nodes, all with mass")]
     NotRigid(String),
+    #[error("stiffness scale must be finite and positive, got {0}")]
+    BadStiffnessScale(f64),
     #[error("volume scale must be finite and positive, got {0}")]
     BadVolumeScale(f64),
     #[error("body \"{body}\" has a non-positive rest volume {volume} m³")]

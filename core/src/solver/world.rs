@@ -1076,6 +1076,38 @@ impl World {
         Ok(())
     }
 
+    /// Anisotropic material: scale the stiffness of `body`'s springs by axis. A spring with
+    /// unit rest direction `u` gets `k · (s_x u_x² + s_y u_y² + s_z u_z²)` (an edge along x
+    /// exactly `s_x k`, a diagonal the blend) and its damper `D · sqrt` of the same factor, so
+    /// the damping ratio is kept. Directions are taken from the current positions, so call it
+    /// before stepping. Scales must be finite and positive.
+    pub fn scale_stiffness_per_axis(
+        &mut self,
+        body: BodyHandle,
+        scale: Vector3<f64>,
+    ) -> Result<(), ConstraintError> {
+        if let Some(&bad) = scale.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(ConstraintError::BadStiffnessScale(bad));
+        }
+        let info = self
+            .bodies
+            .get(body.0)
+            .ok_or(ConstraintError::BodyOutOfRange(body.0))?;
+        let s = &mut self.springs;
+        for i in info.springs.clone() {
+            let r = self.nodes.position[s.a[i] as usize] - self.nodes.position[s.b[i] as usize];
+            let len_sq = r.norm_squared();
+            if len_sq <= 0.0 {
+                continue;
+            }
+            let factor = (scale.x * r.x * r.x + scale.y * r.y * r.y + scale.z * r.z * r.z) / len_sq;
+            s.stiffness[i] *= factor;
+            s.damping[i] *= factor.sqrt();
+        }
+        self.prepared = None;
+        Ok(())
+    }
+
     /// Enclosed volume of a lattice body now (sum of its cells' signed volumes), m³.
     pub fn body_volume(&self, body: BodyHandle) -> f64 {
         self.bodies
