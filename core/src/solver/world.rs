@@ -1,6 +1,7 @@
 //! The [`World`]: every body's nodes and springs, the rigid surfaces and manipulators, and the
 //! stepping loop (symplectic Euler, Miyazaki §3.4 order: forces → velocity update → velocity
-//! dispersion → position update).
+//! dispersion → position update; or Newmark-β, see [`super::newmark`]), then the constraints of
+//! the step: path constraints under symplectic Euler, rigid frames, volume preservation.
 
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{node_contacts, ContactLayer, Plane};
