@@ -2,7 +2,6 @@
 //! mesh is generated (a UV sphere written as OBJ into a temporary folder), so `springbake demo`
 //! needs no files.
 
-use springbake_core::lattice::SpringLayout;
 use springbake_core::scene::{
     BodySection, Interpolation, ManipulatorKey, ManipulatorSection, MaterialSpec, SceneFile,
 };
@@ -33,14 +32,11 @@ pub fn demo_scene(dir: &Path, output: &Path) -> Result<LoadedScene, String> {
     scene.output.frames = 72;
     scene.world.floor = Some(0.0);
     scene.body.push(BodySection {
-        source,
         cells: Some(8),
-        cell_size: None,
         material: MaterialSpec::Preset("rubber".into()),
         offset: [0.0, 0.6, 0.0],
         velocity: [0.3, 0.0, 0.0],
-        // Edges, face and body diagonals: the stiffest in shear, for the hit.
-        springs: SpringLayout::Both,
+        ..BodySection::new(source)
     });
     scene.manipulator.push(ManipulatorSection {
         radius: 0.05,

@@ -25,6 +25,9 @@ pub struct SceneFile {
     pub body: Vec<BodySection>,
     #[serde(default)]
     pub manipulator: Vec<ManipulatorSection>,
+    /// Pin and trajectory constraints (Terasawa §3.1).
+    #[serde(default)]
+    pub constraint: Vec<ConstraintSection>,
 }
 
 /// `[output]`
@@ -98,6 +101,28 @@ pub struct WorldSection {
     /// Elastic-layer stiffness in N/m per node; default: from the body's springs.
     #[serde(default)]
     pub contact_stiffness: Option<f64>,
+    /// Wind acting on every node as air drag.
+    #[serde(default)]
+    pub wind: Option<WindSpec>,
+}
+
+/// `[world.wind]`: `F = m · drag_per_s · (w(t) − v)`, `w(t) = velocity + gust·sin(2π gust_hz t)`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindSpec {
+    /// Mean air velocity, m/s.
+    pub velocity: [f64; 3],
+    #[serde(default)]
+    pub gust: [f64; 3],
+    #[serde(default)]
+    pub gust_hz: f64,
+    /// Drag rate, 1/s.
+    #[serde(default = "default_drag")]
+    pub drag_per_s: f64,
+}
+
+fn default_drag() -> f64 {
+    1.0
 }
 
 fn default_gravity() -> f64 {
@@ -117,6 +142,7 @@ impl Default for WorldSection {
             walls: None,
             contact_thickness: None,
             contact_stiffness: None,
+            wind: None,
         }
     }
 }
@@ -144,6 +170,25 @@ pub struct SolverSection {
     /// Cap on dispersion sweeps per step; hitting it is reported.
     #[serde(default = "default_dispersion_iterations")]
     pub max_dispersion_iterations: u32,
+    /// `"symplectic_euler"` (Miyazaki, default) or `"newmark"` (Terasawa's iterative
+    /// Newmark-β; no velocity dispersion).
+    #[serde(default)]
+    pub integrator: IntegratorSpec,
+    /// β of Newmark-β: 0.25 (average acceleration) or 1/6 (linear acceleration).
+    #[serde(default = "default_beta")]
+    pub newmark_beta: f64,
+}
+
+fn default_beta() -> f64 {
+    0.25
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorSpec {
+    #[default]
+    SymplecticEuler,
+    Newmark,
 }
 
 fn default_true() -> bool {
@@ -163,6 +208,8 @@ impl Default for SolverSection {
             dispersion: true,
             accuracy_n: default_accuracy_n(),
             max_dispersion_iterations: default_dispersion_iterations(),
+            integrator: IntegratorSpec::default(),
+            newmark_beta: default_beta(),
         }
     }
 }
@@ -227,6 +274,100 @@ pub struct BodySection {
     /// folds cells even on an ordinary drop.
     #[serde(default = "default_springs")]
     pub springs: crate::lattice::SpringLayout,
+    /// A name for constraints to refer to (default: the mesh names).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// `"flexible"` (default) or `"rigid"` (keeps its shape exactly: a floating frame).
+    #[serde(default)]
+    pub kind: BodyKind,
+    /// Keep the lattice's volume (Terasawa §3.2) at `volume_scale` × its rest volume.
+    #[serde(default)]
+    pub preserve_volume: bool,
+    #[serde(default = "default_volume_scale")]
+    pub volume_scale: f64,
+    /// Stiffness scale along x, y, z (anisotropy), e.g. `[1, 4, 1]` for a stiff column.
+    #[serde(default = "default_stiffness_scale")]
+    pub stiffness_scale: [f64; 3],
+}
+
+impl BodySection {
+    /// A body with every default: rubber, 10 cells, no offset or velocity, springs `both`.
+    pub fn new(source: impl Into<PathBuf>) -> BodySection {
+        BodySection {
+            source: source.into(),
+            cells: None,
+            cell_size: None,
+            material: MaterialSpec::default(),
+            offset: [0.0; 3],
+            velocity: [0.0; 3],
+            springs: default_springs(),
+            name: None,
+            kind: BodyKind::default(),
+            preserve_volume: false,
+            volume_scale: default_volume_scale(),
+            stiffness_scale: default_stiffness_scale(),
+        }
+    }
+}
+
+fn default_volume_scale() -> f64 {
+    1.0
+}
+fn default_stiffness_scale() -> [f64; 3] {
+    [1.0; 3]
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum BodyKind {
+    #[default]
+    Flexible,
+    Rigid,
+}
+
+/// `[[constraint]]`: lattice nodes of a body follow keyframes (a pin without keys).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintSection {
+    /// The body: a `[[body]] name` or a mesh name.
+    pub body: String,
+    /// Which nodes: those in a box (metres, world frame)…
+    #[serde(default, rename = "box")]
+    pub region: Option<RoomSpec>,
+    /// …or the node nearest to a point…
+    #[serde(default)]
+    pub nearest: Option<[f64; 3]>,
+    /// …or node indices of the body's lattice.
+    #[serde(default)]
+    pub nodes: Option<Vec<usize>>,
+    /// Where the group goes: `[{ t = s, position = [x, y, z] }]`, the nodes keeping their
+    /// offsets from the first key. No keys: a pin where the nodes are.
+    #[serde(default)]
+    pub keys: Vec<PathKey>,
+    #[serde(default)]
+    pub interpolation: PathInterpolation,
+    /// 1: exact; below 1 a loosely bound trajectory.
+    #[serde(default = "default_strength")]
+    pub strength: f64,
+}
+
+fn default_strength() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathKey {
+    pub t: f64,
+    pub position: [f64; 3],
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum PathInterpolation {
+    #[default]
+    Linear,
+    CatmullRom,
 }
 
 fn default_springs() -> crate::lattice::SpringLayout {

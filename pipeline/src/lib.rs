@@ -165,6 +165,28 @@ pub fn validate_scene(scene: &SceneFile) -> Result<(), String> {
             scene.world.friction
         ));
     }
+    if scene.solver.integrator == springbake_core::scene::IntegratorSpec::Newmark
+        && !(scene.solver.newmark_beta > 0.0 && scene.solver.newmark_beta <= 0.5)
+    {
+        return Err(format!(
+            "solver.newmark_beta must be in (0, 0.5], got {}",
+            scene.solver.newmark_beta
+        ));
+    }
+    for (i, c) in scene.constraint.iter().enumerate() {
+        let selectors = [c.region.is_some(), c.nearest.is_some(), c.nodes.is_some()];
+        if selectors.iter().filter(|&&s| s).count() != 1 {
+            return Err(format!(
+                "constraint[{i}]: give exactly one of box, nearest or nodes"
+            ));
+        }
+        if !(0.0..=1.0).contains(&c.strength) {
+            return Err(format!(
+                "constraint[{i}].strength must be in [0, 1], got {}",
+                c.strength
+            ));
+        }
+    }
     for (i, m) in scene.manipulator.iter().enumerate() {
         if !(m.radius > 0.0 && m.length >= 0.0) {
             return Err(format!(
@@ -207,17 +229,13 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
     }
     scene.world.floor = Some(f64::NAN); // "automatic": resolved against the mesh in `prepare`
     scene.body.push(BodySection {
-        source: mesh.to_path_buf(),
         cells: Some(o.cells.unwrap_or(springbake_core::scene::DEFAULT_CELLS)),
-        cell_size: None,
         material: o
             .material
             .clone()
             .map(MaterialSpec::Preset)
             .unwrap_or_default(),
-        offset: [0.0; 3],
-        velocity: [0.0; 3],
-        springs: springbake_core::lattice::SpringLayout::Both,
+        ..BodySection::new(mesh)
     });
     LoadedScene {
         scene,

@@ -11,10 +11,14 @@ use springbake_core::lattice::{
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
 use springbake_core::plugin::{ImportSettings, Registry};
-use springbake_core::scene::{CacheSpec, Interpolation, SceneFile, DEFAULT_CELLS};
+use springbake_core::scene::{
+    BodyKind, CacheSpec, IntegratorSpec, Interpolation as KeyInterpolation, PathInterpolation,
+    SceneFile, DEFAULT_CELLS,
+};
 use springbake_core::solver::manipulator::{ManipulatorKey, ManipulatorTrack};
 use springbake_core::solver::{
-    BodyHandle, DispersionMode, FrameDiagnostics, Plane, World, WorldSettings,
+    nearest_node, nodes_in_box, BodyHandle, DispersionMode, FrameDiagnostics, Integrator,
+    Interpolation, Path, Plane, Wind, World, WorldSettings,
 };
 use std::time::Instant;
 
@@ -285,6 +289,20 @@ pub fn prepare(
             springbake_core::scene::SubstepSpec::Auto => None,
             springbake_core::scene::SubstepSpec::Fixed(n) => Some(n),
         },
+        integrator: match scene.solver.integrator {
+            IntegratorSpec::SymplecticEuler => Integrator::SymplecticEuler,
+            IntegratorSpec::Newmark => Integrator::Newmark {
+                beta: scene.solver.newmark_beta,
+                tolerance: 1e-10,
+                max_iterations: 50,
+            },
+        },
+        wind: scene.world.wind.as_ref().map(|w| Wind {
+            velocity: Vector3::from(w.velocity),
+            gust: Vector3::from(w.gust),
+            gust_hz: w.gust_hz,
+            drag_per_s: w.drag_per_s,
+        }),
         ..WorldSettings::default()
     };
     let mut world = World::new(settings);
@@ -303,18 +321,40 @@ pub fn prepare(
             radius: m.radius,
             length: m.length,
             friction: m.friction,
-            smooth: m.interpolation == Interpolation::Smooth,
+            smooth: m.interpolation == KeyInterpolation::Smooth,
             keys,
             up,
         });
     }
+    let mut body_names: Vec<(Option<String>, String, BodyHandle)> = Vec::new();
     for (p, (lattice, material)) in pending.into_iter().zip(fitted) {
-        let velocity = Vector3::from(scene.body[p.body].velocity);
+        let section = &scene.body[p.body];
+        let velocity = Vector3::from(section.velocity);
         let handle = world.add_lattice_body(p.name.clone(), &lattice, &material, velocity);
         // The mesh, not its lattice, touches the floor, walls and manipulators.
         let (samples, areas) = surface_samples(&p.points, &p.triangles, 0.5 * lattice.cell_size);
         world.add_contact_surface(handle, &lattice, &samples, &areas);
         let embedding = Embedding::new(&lattice, &p.points);
+        let source_path = loaded.source_path(section);
+        let body_error = |e: springbake_core::solver::ConstraintError| PipelineError::Body {
+            body: p.body,
+            source_path: source_path.clone(),
+            message: format!("mesh \"{}\": {e}", p.name),
+        };
+        if section.stiffness_scale != [1.0; 3] {
+            world
+                .scale_stiffness_per_axis(handle, Vector3::from(section.stiffness_scale))
+                .map_err(body_error)?;
+        }
+        if section.kind == BodyKind::Rigid {
+            world.make_rigid(handle).map_err(body_error)?;
+        }
+        if section.preserve_volume {
+            world
+                .preserve_volume(handle, section.volume_scale)
+                .map_err(body_error)?;
+        }
+        body_names.push((section.name.clone(), p.name.clone(), handle));
         bodies.push(PreparedBody {
             name: p.name,
             mesh_index: p.mesh_index,
@@ -325,6 +365,7 @@ pub fn prepare(
             local_from_sim: p.local_from_sim,
         });
     }
+    add_constraints(scene, &mut world, &body_names)?;
     Ok(Prepared {
         world,
         bodies,
@@ -332,6 +373,80 @@ pub fn prepare(
         frame,
         floor,
     })
+}
+
+/// Bind the scene's `[[constraint]]`s: nodes chosen by box, nearest point or index follow
+/// their keyframes (or stay pinned), exactly or loosely (Terasawa eq 3.1).
+fn add_constraints(
+    scene: &SceneFile,
+    world: &mut World,
+    bodies: &[(Option<String>, String, BodyHandle)],
+) -> Result<(), PipelineError> {
+    for (i, c) in scene.constraint.iter().enumerate() {
+        let err = |message: String| PipelineError::Usage(format!("constraint[{i}]: {message}"));
+        let handle = bodies
+            .iter()
+            .find(|(section_name, mesh_name, _)| {
+                section_name.as_deref() == Some(c.body.as_str()) || *mesh_name == c.body
+            })
+            .map(|b| b.2)
+            .ok_or_else(|| {
+                let names: Vec<&str> = bodies
+                    .iter()
+                    .map(|b| b.0.as_deref().unwrap_or(b.1.as_str()))
+                    .collect();
+                err(format!(
+                    "no body named \"{}\"; bodies: {}",
+                    c.body,
+                    names.join(", ")
+                ))
+            })?;
+        let range = world.bodies[handle.0].nodes.clone();
+        let positions = &world.nodes.position[range.clone()];
+        let local: Vec<usize> = if let Some(r) = &c.region {
+            nodes_in_box(positions, Vector3::from(r.min), Vector3::from(r.max))
+        } else if let Some(p) = c.nearest {
+            nearest_node(positions, Vector3::from(p))
+                .into_iter()
+                .collect()
+        } else {
+            let nodes = c.nodes.clone().unwrap_or_default();
+            if let Some(bad) = nodes.iter().find(|&&n| n >= positions.len()) {
+                return Err(err(format!(
+                    "node {bad} out of range: the body has {} nodes",
+                    positions.len()
+                )));
+            }
+            nodes
+        };
+        if local.is_empty() {
+            return Err(err("selects no lattice nodes".into()));
+        }
+        let nodes: Vec<usize> = local.iter().map(|n| n + range.start).collect();
+        let path = if c.keys.is_empty() {
+            let centre = nodes
+                .iter()
+                .map(|&n| world.nodes.position[n])
+                .sum::<Vector3<f64>>()
+                / nodes.len() as f64;
+            Path::constant(centre)
+        } else {
+            let keys = c
+                .keys
+                .iter()
+                .map(|k| (k.t, Vector3::from(k.position)))
+                .collect();
+            let interpolation = match c.interpolation {
+                PathInterpolation::Linear => Interpolation::Linear,
+                PathInterpolation::CatmullRom => Interpolation::CatmullRom,
+            };
+            Path::new(keys, interpolation).map_err(|e| err(e.to_string()))?
+        };
+        world
+            .add_trajectory(&nodes, path, c.strength)
+            .map_err(|e| err(e.to_string()))?;
+    }
+    Ok(())
 }
 
 fn to_local(m: &Matrix4<f64>, p: &Point3<f64>) -> [f32; 3] {
