@@ -11,10 +11,12 @@ echo "== cargo clippy --all-targets -D warnings"
 cargo clippy --workspace --all-targets --quiet -- -D warnings
 echo "== cargo test"
 set +e
-cargo test --workspace --no-fail-fast 2>&1 | tee target/test.log
+log=$(mktemp)
+cargo test --workspace --no-fail-fast 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
 set -e
-passed=$(grep -oE "test result: [a-zA-Z]+\. [0-9]+ passed" target/test.log | awk '{s+=$4} END {print s+0}')
-failed=$(grep -oE "; [0-9]+ failed" target/test.log | awk '{s+=$2} END {print s+0}')
+passed=$({ grep -oE "test result: [a-zA-Z]+\. [0-9]+ passed" "$log" || true; } | awk '{s+=$4} END {print s+0}')
+failed=$({ grep -oE "; [0-9]+ failed" "$log" || true; } | awk '{s+=$2} END {print s+0}')
 echo "tests: $passed passed, $failed failed"
+rm -f "$log"
 exit "$status"
