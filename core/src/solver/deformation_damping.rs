@@ -8,8 +8,9 @@
 //! frequency `ω₁ ≈ π sqrt(E/ρ) / ℓ` (ℓ the longest side). Linear and angular momentum are kept
 //! exactly: rigid motion is not damped.
 
-use super::NodeState;
+use super::{NodeState, PAR_CHUNK};
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// The rigid motion of a body at one instant.
@@ -28,14 +29,33 @@ impl RigidMotion {
 }
 
 /// Best-fit rigid motion of the nodes in `range` (centre of mass, its velocity, and the angular
-/// velocity `I⁻¹ L` about it). Serial and in node order: deterministic.
+/// velocity `I⁻¹ L` about it). Partial sums over fixed chunks, added in chunk order: the same
+/// bits with any thread count.
 pub fn rigid_motion(nodes: &NodeState, range: Range<usize>) -> RigidMotion {
-    let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
-    for i in range.clone() {
-        m += nodes.mass[i];
-        mx += nodes.position[i] * nodes.mass[i];
-        mv += nodes.velocity[i] * nodes.mass[i];
-    }
+    let chunks = |start: usize, end: usize| {
+        (start..end)
+            .step_by(PAR_CHUNK)
+            .map(move |c| c..(c + PAR_CHUNK).min(end))
+            .collect::<Vec<_>>()
+    };
+    let parts = chunks(range.start, range.end);
+    let first: Vec<(f64, Vector3<f64>, Vector3<f64>)> = parts
+        .par_iter()
+        .map(|r| {
+            let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
+            for i in r.clone() {
+                m += nodes.mass[i];
+                mx += nodes.position[i] * nodes.mass[i];
+                mv += nodes.velocity[i] * nodes.mass[i];
+            }
+            (m, mx, mv)
+        })
+        .collect();
+    let (m, mx, mv) = first
+        .iter()
+        .fold((0.0, Vector3::zeros(), Vector3::zeros()), |a, b| {
+            (a.0 + b.0, a.1 + b.1, a.2 + b.2)
+        });
     if m <= 0.0 {
         return RigidMotion {
             centre: Vector3::zeros(),
@@ -44,14 +64,24 @@ pub fn rigid_motion(nodes: &NodeState, range: Range<usize>) -> RigidMotion {
         };
     }
     let (centre, velocity) = (mx / m, mv / m);
-    let mut inertia = Matrix3::zeros();
-    let mut momentum = Vector3::zeros();
-    for i in range {
-        let r = nodes.position[i] - centre;
-        let mi = nodes.mass[i];
-        inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * mi;
-        momentum += r.cross(&(nodes.velocity[i] - velocity)) * mi;
-    }
+    let second: Vec<(Matrix3<f64>, Vector3<f64>)> = parts
+        .par_iter()
+        .map(|r| {
+            let (mut inertia, mut momentum) = (Matrix3::zeros(), Vector3::zeros());
+            for i in r.clone() {
+                let d = nodes.position[i] - centre;
+                let mi = nodes.mass[i];
+                inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
+                momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
+            }
+            (inertia, momentum)
+        })
+        .collect();
+    let (inertia, momentum) = second
+        .iter()
+        .fold((Matrix3::zeros(), Vector3::zeros()), |a, b| {
+            (a.0 + b.0, a.1 + b.1)
+        });
     let angular_velocity = inertia
         .try_inverse()
         .map(|inv| inv * momentum)

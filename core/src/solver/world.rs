@@ -823,11 +823,17 @@ impl World {
             let rigid = rigid_motion(nodes, body.nodes.clone());
             let pull = (body.deformation_damping * dt).min(1.0);
             let (pos, vel) = (&nodes.position, &mut nodes.velocity);
-            for (v, x) in vel[body.nodes.clone()]
-                .iter_mut()
-                .zip(&pos[body.nodes.clone()])
-            {
+            let (vel, pos) = (&mut vel[body.nodes.clone()], &pos[body.nodes.clone()]);
+            let pull_node = |(v, x): (&mut Vector3<f64>, &Vector3<f64>)| {
                 *v += (rigid.velocity_at(x) - *v) * pull;
+            };
+            if vel.len() > 2 * PAR_CHUNK {
+                vel.par_iter_mut()
+                    .with_min_len(PAR_CHUNK)
+                    .zip(pos.par_iter())
+                    .for_each(pull_node);
+            } else {
+                vel.iter_mut().zip(pos.iter()).for_each(pull_node);
             }
         }
 
