@@ -148,6 +148,9 @@ pub struct SurfacePoints {
     pub body_mass: Vec<f64>,
     /// The body each point belongs to.
     pub body: Vec<u32>,
+    /// How far a point can be from its cell's first corner, m (three cell diagonals: cells
+    /// stretched by the bounded dispersion stay well inside).
+    pub reach: Vec<f64>,
 }
 
 impl SurfacePoints {
@@ -348,6 +351,9 @@ impl World {
             self.surface.weights.push(embedding.weights[i]);
             self.surface.share.push(shares[i]);
             self.surface.body.push(body.0 as u32);
+            self.surface
+                .reach
+                .push(3.0 * 3f64.sqrt() * lattice.cell_size);
             self.surface.body_mass.push(if total_share > 0.0 {
                 body_mass * shares[i] / total_share
             } else {
@@ -709,6 +715,19 @@ impl World {
                     return;
                 }
                 let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
+                // Narrow phase: with no capsule about, a point whose cell corner is farther
+                // than its reach from every plane cannot touch one.
+                if caps.is_empty() {
+                    let corner = state.position[ids[0] as usize];
+                    let reach = surface.reach[i];
+                    if planes
+                        .iter()
+                        .all(|pl| pl.normal.dot(&corner) - pl.offset > reach)
+                    {
+                        *out = (Vector3::zeros(), 0.0, Vector3::zeros());
+                        return;
+                    }
+                }
                 // Position, velocity and the effective mass 1 / Σ w²/m that a force at
                 // the point meets through its cell's nodes.
                 let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
