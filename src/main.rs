@@ -144,12 +144,15 @@ fn main() {
         eprintln!("springbake: internal error: {info}");
     }));
     let cli = Cli::parse();
-    let code = match run(cli.command) {
-        Ok(()) => 0,
-        Err(f) => {
+    // A panic (a bug) has been reported by the hook; it ends with exit code 1 like any failure
+    // that is not the user's.
+    let code = match std::panic::catch_unwind(|| run(cli.command)) {
+        Ok(Ok(())) => 0,
+        Ok(Err(f)) => {
             eprintln!("springbake: error: {}", f.message);
             f.code
         }
+        Err(_) => 1,
     };
     exit_now(code)
 }

@@ -447,3 +447,37 @@ fn scripted_manipulator_sweep_pushes_a_jelly_cube_away() {
         "the cube moved away from the manipulator by only {moved} m"
     );
 }
+
+#[test]
+fn a_non_finite_value_stops_the_run_naming_frame_body_and_node() {
+    use springbake_core::solver::SimulationError;
+    let mut w = World::new(no_contact(9.81));
+    let lattice = cube_lattice([0.0; 3], 0.3, 3);
+    let m = Material::preset("rubber").unwrap();
+    w.add_lattice_body("first", &lattice, &m, Vector3::zeros());
+    w.add_lattice_body("second", &lattice, &m, Vector3::zeros());
+    w.advance_frame(1.0 / 24.0, 2, &|| false).unwrap();
+    let n = lattice.node_count();
+    w.nodes.velocity[n + 5].y = f64::NAN;
+    match w.advance_frame(1.0 / 24.0, 3, &|| false) {
+        Err(SimulationError::NonFinite {
+            frame, body, node, ..
+        }) => {
+            assert_eq!((frame, body.as_str()), (3, "second"));
+            // The NaN spreads through its springs within the frame; the reported node is one
+            // of the second body's nodes.
+            assert!(node < n, "body-local index {node}");
+        }
+        other => panic!("expected a non-finite error, got {other:?}"),
+    }
+    let err = SimulationError::NonFinite {
+        frame: 3,
+        body: "second".into(),
+        node: 5,
+        what: "position",
+    };
+    assert!(
+        err.to_string().contains("frame 3") && err.to_string().contains("node 5"),
+        "{err}"
+    );
+}
