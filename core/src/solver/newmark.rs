@@ -25,7 +25,7 @@
 //! model and the deformation damping towards the rigid motion.
 
 use super::constraints::TrajectoryConstraint;
-use super::contact::{node_contacts, ContactLayer};
+use super::contact::node_contacts;
 use super::forces::{gathered_spring_force, spring_forces, Adjacency};
 use super::manipulator::Capsule;
 use super::{NodeState, World};
@@ -131,30 +131,13 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
         let layer = settings.layer;
         for i in 0..surface.len() {
             let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
-            let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
-            for c in 0..8 {
-                let n = ids[c] as usize;
-                x += trial.position[n] * w[c];
-                v += st.contact_velocity[n] * w[c];
-                compliance += w[c] * w[c] * trial.inv_mass[n];
-            }
-            let share = surface.share[i];
-            let mass = if compliance > 0.0 {
-                share / compliance
-            } else {
-                0.0
-            };
-            let point_layer = ContactLayer {
-                stiffness: layer.stiffness * share,
-                ..layer
-            };
-            let (f, d, _) = node_contacts(
-                &point_layer,
+            let (f, d, _) = surface.contact(
+                i,
+                trial,
+                &st.contact_velocity,
+                &layer,
                 &settings.planes,
                 &st.capsules,
-                x,
-                v,
-                mass.max(surface.body_mass[i]),
                 dt,
             );
             deepest = deepest.max(d);

@@ -154,6 +154,50 @@ pub struct SurfacePoints {
 }
 
 impl SurfacePoints {
+    /// Rigid contact of point `i` for node positions in `nodes` and node velocities
+    /// `velocities`: (force, depth, force from the manipulators). The point feels the layer at
+    /// its share of a node's stiffness, damped for its share of the body's mass or its
+    /// effective mass `1 / Σ w²/m` through its cell's nodes, whichever is larger.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn contact(
+        &self,
+        i: usize,
+        nodes: &NodeState,
+        velocities: &[Vector3<f64>],
+        layer: &ContactLayer,
+        planes: &[Plane],
+        capsules: &[Capsule],
+        dt: f64,
+    ) -> (Vector3<f64>, f64, Vector3<f64>) {
+        let (w, ids) = (&self.weights[i], &self.nodes[i]);
+        let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
+        for c in 0..8 {
+            let n = ids[c] as usize;
+            x += nodes.position[n] * w[c];
+            v += velocities[n] * w[c];
+            compliance += w[c] * w[c] * nodes.inv_mass[n];
+        }
+        let share = self.share[i];
+        let effective = if compliance > 0.0 {
+            share / compliance
+        } else {
+            0.0
+        };
+        let point_layer = ContactLayer {
+            stiffness: layer.stiffness * share,
+            ..*layer
+        };
+        node_contacts(
+            &point_layer,
+            planes,
+            capsules,
+            x,
+            v,
+            effective.max(self.body_mass[i]),
+            dt,
+        )
+    }
+
     pub fn len(&self) -> usize {
         self.nodes.len()
     }
@@ -714,7 +758,7 @@ impl World {
                     *out = (Vector3::zeros(), 0.0, Vector3::zeros());
                     return;
                 }
-                let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
+                let ids = &surface.nodes[i];
                 // Narrow phase: with no capsule about, a point whose cell corner is farther
                 // than its reach from every plane cannot touch one.
                 if caps.is_empty() {
@@ -728,27 +772,7 @@ impl World {
                         return;
                     }
                 }
-                // Position, velocity and the effective mass 1 / Σ w²/m that a force at
-                // the point meets through its cell's nodes.
-                let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
-                for c in 0..8 {
-                    let n = ids[c] as usize;
-                    x += state.position[n] * w[c];
-                    v += state.velocity[n] * w[c];
-                    compliance += w[c] * w[c] * state.inv_mass[n];
-                }
-                let share = surface.share[i];
-                let mass = if compliance > 0.0 {
-                    share / compliance
-                } else {
-                    0.0
-                };
-                let mass = mass.max(surface.body_mass[i]);
-                let point_layer = ContactLayer {
-                    stiffness: layer.stiffness * share,
-                    ..layer
-                };
-                *out = node_contacts(&point_layer, planes, caps, x, v, mass, dt);
+                *out = surface.contact(i, state, &state.velocity, &layer, planes, caps, dt);
             };
             // Small point sets stay on this thread: waking the pool costs more than the work.
             if p.point_contact.len() > 2 * PAR_CHUNK {
