@@ -11,6 +11,7 @@
 
 pub mod constraints;
 mod contact;
+pub mod contact_log;
 pub mod deformation_damping;
 pub mod diagnostics;
 mod forces;
@@ -26,6 +27,7 @@ pub use constraints::{
     nearest_node, nodes_in_box, ConstraintError, Interpolation, Path, TrajectoryConstraint, Wind,
 };
 pub use contact::{ContactLayer, Plane};
+pub use contact_log::{ContactLog, ContactPartner, ContactRecord};
 pub use diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 pub use manipulator::{Capsule, ManipulatorTrack};
 pub use miyazaki1996_velocity_dispersion::DispersionMode;

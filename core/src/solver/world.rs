@@ -5,6 +5,7 @@
 
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{node_contacts, ContactLayer, Plane};
+use super::contact_log::{log_step, ContactLog, ContactRecord, RigidScene};
 use super::deformation_damping::rigid_motion;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
@@ -128,6 +129,8 @@ pub struct World {
     pub rigid: Vec<RigidBody>,
     /// Newmark-β state (the previous step's accelerations), once a Newmark step ran.
     pub(crate) newmark: Option<NewmarkState>,
+    /// What each body touched during the last frame (see [`super::contact_log`]).
+    pub(crate) contact_log: ContactLog,
     prepared: Option<Prepared>,
 }
 
@@ -283,8 +286,15 @@ impl World {
             volume: Vec::new(),
             rigid: Vec::new(),
             newmark: None,
+            contact_log: ContactLog::default(),
             prepared: None,
         }
+    }
+
+    /// What each body touched during the last [`World::advance_frame`]: one record per
+    /// (body, partner) pair, in body order, then partner order (see [`super::contact_log`]).
+    pub fn frame_contacts(&self) -> &[ContactRecord] {
+        self.contact_log.records()
     }
 
     /// Add a fitted lattice as a body: masses from density (each cell's mass shared equally by
@@ -615,6 +625,7 @@ impl World {
                 tolerance,
                 max_iterations,
             } => {
+                super::contact_log::log_step_of(self, dt);
                 let out = super::newmark::step(self, dt, beta, tolerance, max_iterations);
                 self.time += dt;
                 acc.max_depth = acc.max_depth.max(out.max_depth);
@@ -683,6 +694,7 @@ impl World {
             surface,
             node_contact,
             bodies,
+            contact_log,
             ..
         } = self;
         let p = prepared.as_mut().expect("prepared");
@@ -800,6 +812,31 @@ impl World {
             if !p.capsules.is_empty() {
                 acc.reaction_sum -= from_caps;
             }
+        }
+        // The contact log: this step's contacts per (body, partner), at the state the forces
+        // are evaluated at (only the points the pass above found touching are looked at again).
+        {
+            let point_contact = &p.point_contact;
+            let depths = |i: usize| point_contact.get(i).map_or(0.0, |c| c.1);
+            let scene = RigidScene {
+                layer: &layer,
+                planes: &settings.planes,
+                capsules: &p.capsules,
+                up: settings.up,
+                dt,
+                lead: 0.0,
+            };
+            let hint: &dyn Fn(usize) -> f64 = &depths;
+            log_step(
+                contact_log,
+                &scene,
+                surface,
+                nodes,
+                node_contact,
+                bodies,
+                0,
+                surface_contact.then_some(hint),
+            );
         }
 
         // Fused node pass: gravity + gathered springs + contact, then v += F/m·ΔT (eq 2).
@@ -940,9 +977,11 @@ impl World {
     ) -> Result<FrameDiagnostics, SimulationError> {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
+        self.contact_log.begin_frame();
         for _ in 0..choice.substeps {
             self.step_accumulate(choice.dt, &mut acc);
         }
+        self.contact_log.end_frame();
         if cancelled() {
             return Err(SimulationError::Cancelled);
         }

@@ -1,0 +1,491 @@
+//! The contact log: what each body touched during the last [`World::advance_frame`], one
+//! [`ContactRecord`] per (body, partner) pair — the floor, the walls, a manipulator, another
+//! body or a static collider.
+//!
+//! Contacts are observed in the force pass of every step, from the state the step's forces are
+//! evaluated at (so the speed logged at first touch is the approach speed *before* the contact
+//! force acted). Per step, the forces on each body are summed per partner into a fixed
+//! `bodies × slots` table (no allocation once sized); at the end of the step the table updates
+//! the frame's running values; at the end of the frame the touched pairs become records, in
+//! body order, then partner order (floor, wall, manipulators, bodies, colliders).
+//!
+//! Floor and walls are the world's planes: a plane whose normal is within 25° of `up` is the
+//! floor, any other a wall (several walls are one partner; their forces add).
+//!
+//! [`World::advance_frame`]: super::World::advance_frame
+
+use super::contact::{node_contacts, ContactLayer, Plane};
+use super::manipulator::Capsule;
+use super::world::{BodyInfo, SurfacePoints};
+use super::NodeState;
+use nalgebra::Vector3;
+
+/// What a body touched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ContactPartner {
+    Floor,
+    Wall,
+    /// Index among the manipulators at that time: the scripted tracks, then the live capsules.
+    Manipulator(usize),
+    /// Index of the other body in the world.
+    Body(usize),
+    /// Index of the static collider in the world.
+    Collider(usize),
+}
+
+/// One (body, partner) pair's contact during a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactRecord {
+    /// Index of the body in the world.
+    pub body: usize,
+    pub partner: ContactPartner,
+    /// Largest approach speed along the contact normal at a first touch in the frame (the
+    /// step the pair began touching), m/s; 0 when the pair was already touching as the frame
+    /// began and never separated.
+    pub impact_speed: f64,
+    /// Largest total force on the body from that partner at any step of the frame, N.
+    pub peak_force: f64,
+    /// Whether the pair touched at the frame's last step.
+    pub touching_at_end: bool,
+}
+
+/// One pair's contacts within one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct StepPair {
+    force: Vector3<f64>,
+    approach: f64,
+    touching: bool,
+}
+
+/// One pair's running values over a frame (and whether it touched at the previous step).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct FramePair {
+    touched: bool,
+    touching: bool,
+    impact: f64,
+    peak: f64,
+}
+
+/// The per-step table and the frame's records (see the module docs).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ContactLog {
+    bodies: usize,
+    capsules: usize,
+    colliders: usize,
+    step: Vec<StepPair>,
+    frame: Vec<FramePair>,
+    records: Vec<ContactRecord>,
+    /// Reused buffer for the manipulators of a step that has no contact pass of its own.
+    capsules_scratch: Vec<Capsule>,
+}
+
+impl ContactLog {
+    fn stride(&self) -> usize {
+        2 + self.capsules + self.bodies + self.colliders
+    }
+
+    /// Size the table for the world's counts (resets the pairs' state when a count changed).
+    pub(crate) fn ensure(&mut self, bodies: usize, capsules: usize, colliders: usize) {
+        if (bodies, capsules, colliders) != (self.bodies, self.capsules, self.colliders)
+            || self.step.is_empty() && bodies > 0
+        {
+            self.bodies = bodies;
+            self.capsules = capsules;
+            self.colliders = colliders;
+            let n = bodies * self.stride();
+            self.step = vec![StepPair::default(); n];
+            self.frame = vec![FramePair::default(); n];
+        }
+    }
+
+    fn slot(&self, partner: ContactPartner) -> usize {
+        match partner {
+            ContactPartner::Floor => 0,
+            ContactPartner::Wall => 1,
+            ContactPartner::Manipulator(i) => 2 + i,
+            ContactPartner::Body(i) => 2 + self.capsules + i,
+            ContactPartner::Collider(i) => 2 + self.capsules + self.bodies + i,
+        }
+    }
+
+    fn partner(&self, slot: usize) -> ContactPartner {
+        let (c, b) = (self.capsules, self.bodies);
+        match slot {
+            0 => ContactPartner::Floor,
+            1 => ContactPartner::Wall,
+            s if s < 2 + c => ContactPartner::Manipulator(s - 2),
+            s if s < 2 + c + b => ContactPartner::Body(s - 2 - c),
+            s => ContactPartner::Collider(s - 2 - c - b),
+        }
+    }
+
+    /// Start a frame: forget the last frame's values (the touching state carries over).
+    pub(crate) fn begin_frame(&mut self) {
+        for f in &mut self.frame {
+            f.touched = false;
+            f.impact = 0.0;
+            f.peak = 0.0;
+        }
+    }
+
+    /// Start a step.
+    pub(crate) fn begin_step(&mut self) {
+        self.step.fill(StepPair::default());
+    }
+
+    /// A contact of `body` with `partner` this step: `force` on the body, `approach` the
+    /// approach speed along the contact normal (positive closing).
+    pub(crate) fn add(
+        &mut self,
+        body: usize,
+        partner: ContactPartner,
+        force: Vector3<f64>,
+        approach: f64,
+    ) {
+        if body >= self.bodies {
+            return;
+        }
+        let i = body * self.stride() + self.slot(partner);
+        if let Some(s) = self.step.get_mut(i) {
+            s.force += force;
+            s.approach = s.approach.max(approach);
+            s.touching = true;
+        }
+    }
+
+    /// End a step: fold its table into the frame's values.
+    pub(crate) fn end_step(&mut self) {
+        for (s, f) in self.step.iter().zip(self.frame.iter_mut()) {
+            if s.touching {
+                if !f.touching {
+                    f.impact = f.impact.max(s.approach);
+                }
+                f.touched = true;
+                f.peak = f.peak.max(s.force.norm());
+            }
+            f.touching = s.touching;
+        }
+    }
+
+    /// End a frame: the touched pairs become the frame's records.
+    pub(crate) fn end_frame(&mut self) {
+        self.records.clear();
+        let stride = self.stride();
+        for (i, f) in self.frame.iter().enumerate() {
+            if f.touched {
+                self.records.push(ContactRecord {
+                    body: i / stride,
+                    partner: self.partner(i % stride),
+                    impact_speed: f.impact,
+                    peak_force: f.peak,
+                    touching_at_end: f.touching,
+                });
+            }
+        }
+    }
+
+    /// The last frame's records.
+    pub fn records(&self) -> &[ContactRecord] {
+        &self.records
+    }
+}
+
+/// Whether a plane is the floor (normal within 25° of `up`) rather than a wall.
+pub(crate) fn is_floor(plane: &Plane, up: &Vector3<f64>) -> bool {
+    plane.normal.dot(up) > 25f64.to_radians().cos()
+}
+
+/// What the rigid-surface contacts need from the world, borrowed for one observation.
+pub(crate) struct RigidScene<'a> {
+    pub layer: &'a ContactLayer,
+    pub planes: &'a [Plane],
+    pub capsules: &'a [Capsule],
+    pub up: Vector3<f64>,
+    pub dt: f64,
+    /// Observe every point at `x + lead · v`: 0 for symplectic Euler (its contacts take the
+    /// step's starting positions), `dt` for Newmark-β (its contacts take predicted positions,
+    /// so they act a step before the starting position reaches a surface).
+    pub lead: f64,
+}
+
+impl RigidScene<'_> {
+    /// Log the contacts of a point at `x` moving at `v` (damper mass `mass`, layer `layer`)
+    /// with each plane and capsule separately, evaluated by the solver's own contact law.
+    fn log_point(
+        &self,
+        log: &mut ContactLog,
+        body: usize,
+        layer: &ContactLayer,
+        x: Vector3<f64>,
+        v: Vector3<f64>,
+        mass: f64,
+    ) {
+        let x = x + v * self.lead;
+        for (j, plane) in self.planes.iter().enumerate() {
+            if plane.offset - plane.normal.dot(&x) <= 0.0 {
+                continue;
+            }
+            let one = std::slice::from_ref(plane);
+            let (f, _, _) = node_contacts(layer, one, &[], x, v, mass, self.dt);
+            let partner = if is_floor(&self.planes[j], &self.up) {
+                ContactPartner::Floor
+            } else {
+                ContactPartner::Wall
+            };
+            log.add(body, partner, f, -v.dot(&plane.normal));
+        }
+        for (j, cap) in self.capsules.iter().enumerate() {
+            let d = x - cap.closest_point(&x);
+            let dist = d.norm();
+            if dist >= cap.radius {
+                continue;
+            }
+            let n = if dist > 1e-12 {
+                d / dist
+            } else {
+                cap.fallback_normal()
+            };
+            let one = std::slice::from_ref(cap);
+            let (f, _, _) = node_contacts(layer, &[], one, x, v, mass, self.dt);
+            log.add(
+                body,
+                ContactPartner::Manipulator(j),
+                f,
+                -(v - cap.velocity).dot(&n),
+            );
+        }
+    }
+}
+
+/// Position, velocity and damper mass of surface point `i`, as
+/// [`SurfacePoints::contact`] computes them: the weighted sums over its cell's nodes, and the
+/// larger of its share of the body's mass and its effective mass `share / Σ w²/m`.
+pub(crate) fn point_kinematics(
+    surface: &SurfacePoints,
+    i: usize,
+    nodes: &NodeState,
+    velocities: &[Vector3<f64>],
+) -> (Vector3<f64>, Vector3<f64>, f64) {
+    let (w, ids) = (&surface.weights[i], &surface.nodes[i]);
+    let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
+    for c in 0..8 {
+        let n = ids[c] as usize;
+        x += nodes.position[n] * w[c];
+        v += velocities[n] * w[c];
+        compliance += w[c] * w[c] * nodes.inv_mass[n];
+    }
+    let effective = if compliance > 0.0 {
+        surface.share[i] / compliance
+    } else {
+        0.0
+    };
+    (x, v, effective.max(surface.body_mass[i]))
+}
+
+/// Log one step's rigid-surface contacts (floor, walls, manipulators): the display-surface
+/// points (see [`observe_surface`]) and the nodes of bodies without a display surface.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn observe_rigid(
+    log: &mut ContactLog,
+    scene: &RigidScene,
+    surface: &SurfacePoints,
+    nodes: &NodeState,
+    velocities: &[Vector3<f64>],
+    node_contact: &[bool],
+    bodies: &[BodyInfo],
+    depths: Option<&dyn Fn(usize) -> f64>,
+) {
+    if scene.planes.is_empty() && scene.capsules.is_empty() {
+        return;
+    }
+    observe_surface(log, scene, surface, nodes, velocities, depths);
+    observe_nodes(log, scene, nodes, velocities, node_contact, bodies);
+}
+
+/// Log the rigid-surface contacts of the display-surface points. With `depths` (the step's
+/// deepest penetration per point, as the contact pass computed it), only the points that touch
+/// something are evaluated again; without, every point.
+pub(crate) fn observe_surface(
+    log: &mut ContactLog,
+    scene: &RigidScene,
+    surface: &SurfacePoints,
+    nodes: &NodeState,
+    velocities: &[Vector3<f64>],
+    depths: Option<&dyn Fn(usize) -> f64>,
+) {
+    for i in 0..surface.len() {
+        if let Some(depth) = depths {
+            if depth(i) <= 0.0 {
+                continue;
+            }
+        }
+        let (x, v, mass) = point_kinematics(surface, i, nodes, velocities);
+        let layer = ContactLayer {
+            stiffness: scene.layer.stiffness * surface.share[i],
+            ..*scene.layer
+        };
+        scene.log_point(log, surface.body[i] as usize, &layer, x, v, mass);
+    }
+}
+
+/// Log the rigid-surface contacts of the nodes that take contacts themselves (bodies without
+/// a display surface), body by body; a body whose nodes' box reaches no plane or capsule is
+/// skipped after the box.
+pub(crate) fn observe_nodes(
+    log: &mut ContactLog,
+    scene: &RigidScene,
+    nodes: &NodeState,
+    velocities: &[Vector3<f64>],
+    node_contact: &[bool],
+    bodies: &[BodyInfo],
+) {
+    for (b, info) in bodies.iter().enumerate() {
+        let range = &info.nodes;
+        if !node_contact.get(range.start).copied().unwrap_or(false) {
+            continue;
+        }
+        let (mut lo, mut hi) = (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        );
+        for x in &nodes.position[range.clone()] {
+            lo = lo.inf(x);
+            hi = hi.sup(x);
+        }
+        let near_plane = scene.planes.iter().any(|pl| {
+            let lowest = (0..8)
+                .map(|c| {
+                    let corner = Vector3::new(
+                        if c & 1 == 0 { lo.x } else { hi.x },
+                        if c & 2 == 0 { lo.y } else { hi.y },
+                        if c & 4 == 0 { lo.z } else { hi.z },
+                    );
+                    pl.normal.dot(&corner)
+                })
+                .fold(f64::INFINITY, f64::min);
+            lowest < pl.offset
+        });
+        let near_capsule = scene.capsules.iter().any(|c| {
+            let (a, e) = c.endpoints();
+            let (clo, chi) = (
+                a.inf(&e).add_scalar(-c.radius),
+                a.sup(&e).add_scalar(c.radius),
+            );
+            (0..3).all(|k| clo[k] <= hi[k] && chi[k] >= lo[k])
+        });
+        if !(near_plane || near_capsule) {
+            continue;
+        }
+        for i in range.clone() {
+            if node_contact[i] {
+                let (x, v, m) = (nodes.position[i], velocities[i], nodes.mass[i]);
+                scene.log_point(log, b, scene.layer, x, v, m);
+            }
+        }
+    }
+}
+
+/// One step's logging of the rigid-surface contacts, from the state the step's forces are
+/// evaluated at: sizes the table, starts the step, observes, ends the step. `depths`: the
+/// contact pass's deepest penetration per surface point, if it ran.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn log_step(
+    log: &mut ContactLog,
+    scene: &RigidScene,
+    surface: &SurfacePoints,
+    nodes: &NodeState,
+    node_contact: &[bool],
+    bodies: &[BodyInfo],
+    colliders: usize,
+    depths: Option<&dyn Fn(usize) -> f64>,
+) {
+    log.ensure(bodies.len(), scene.capsules.len(), colliders);
+    log.begin_step();
+    observe_rigid(
+        log,
+        scene,
+        surface,
+        nodes,
+        &nodes.velocity,
+        node_contact,
+        bodies,
+        depths,
+    );
+    log.end_step();
+}
+
+/// [`log_step`] for a Newmark-β step (no contact pass of its own to share): the manipulators
+/// at the world's time go into a reused buffer; points are observed one step ahead.
+pub(crate) fn log_step_of(world: &mut super::World, dt: f64) {
+    let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
+    caps.clear();
+    caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
+    caps.extend(world.live_capsules.iter().copied());
+    let scene = RigidScene {
+        layer: &world.settings.layer,
+        planes: &world.settings.planes,
+        capsules: &caps,
+        up: world.settings.up,
+        dt,
+        lead: dt,
+    };
+    log_step(
+        &mut world.contact_log,
+        &scene,
+        &world.surface,
+        &world.nodes,
+        &world.node_contact,
+        &world.bodies,
+        0,
+        None,
+    );
+    world.contact_log.capsules_scratch = caps;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_touch_speed_peak_force_and_order() {
+        let mut log = ContactLog::default();
+        log.ensure(2, 1, 1);
+        log.begin_frame();
+        // Step 1: body 1 hits the floor at 3 m/s; body 0 is touched by collider 0.
+        log.begin_step();
+        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 5.0, 0.0), 3.0);
+        log.add(
+            0,
+            ContactPartner::Collider(0),
+            Vector3::new(1.0, 0.0, 0.0),
+            0.5,
+        );
+        log.end_step();
+        // Step 2: body 1 still on the floor (slower, larger force), manipulator 0 on body 1.
+        log.begin_step();
+        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 8.0, 0.0), 1.0);
+        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 2.0, 0.0), 0.2);
+        log.add(1, ContactPartner::Manipulator(0), Vector3::zeros(), 0.1);
+        log.end_step();
+        log.end_frame();
+        let r = log.records();
+        assert_eq!(r.len(), 3);
+        assert_eq!((r[0].body, r[0].partner), (0, ContactPartner::Collider(0)));
+        assert!(!r[0].touching_at_end);
+        assert_eq!((r[1].body, r[1].partner), (1, ContactPartner::Floor));
+        assert_eq!(r[1].impact_speed, 3.0, "speed at first touch, not later");
+        assert_eq!(r[1].peak_force, 10.0, "forces of one step add");
+        assert!(r[1].touching_at_end);
+        assert_eq!(r[2].partner, ContactPartner::Manipulator(0));
+        // Next frame: still touching the floor from the start, so no new impact.
+        log.begin_frame();
+        log.begin_step();
+        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 1.0, 0.0), 2.0);
+        log.end_step();
+        log.end_frame();
+        let r = log.records();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].impact_speed, 0.0);
+        assert_eq!(r[0].peak_force, 1.0);
+    }
+}
