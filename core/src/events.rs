@@ -3,8 +3,9 @@
 //! This module owns a deterministic event queue that is independent of the solver: the solver
 //! (or any driver) reports what happened in each output frame as an [`Observation`] and
 //! [`EventQueue::observe`] answers with the [`Firing`]s, each a [`Procedure`] to apply to a
-//! body. The queue never touches bodies itself. It is not yet wired into the solver or the scene
-//! file; [`EventsFile`] is the TOML form a scene can embed as `[[event]]` tables.
+//! body. The queue never touches bodies itself: [`crate::procedures`] applies the firings to a
+//! world, and the pipeline wires the scene file's `[[event]]` tables (the [`EventsFile`] form)
+//! and the solver's contact log to it.
 //!
 //! # Events
 //!
@@ -52,7 +53,10 @@
 //! omitted = for the current frame), `{ apply_impulse = [0, 2, 0] }` (N·s),
 //! `{ set_velocity = [3, 4, 0] }` (m/s; the "throw"), `{ switch_feature = "bounce" }` (`throw`,
 //! `bounce`, `roll`, `collide`), `{ change_material = "rubber" }`,
-//! `{ follow_trajectory = "arc" }`.
+//! `{ follow_trajectory = "arc" }`, `{ volume_scale = 0.8 }` (squash and stretch),
+//! `{ anticipate = { velocity = [0, 0, -6], pull_back_m = 0.05, duration_secs = 0.2 } }`,
+//! `{ plugin = { name = "my_procedure", args = { … } } }` (a procedure a plug-in registered).
+//! What each does to a body is documented in [`crate::procedures`].
 //!
 //! # Example (the thesis's bowling ball, fig 4.28)
 //!
@@ -140,6 +144,24 @@ pub enum Procedure {
     Settle,
     /// Follow the named trajectory (physics §9).
     FollowTrajectory(String),
+    /// Squash and stretch: drive the body's volume towards this multiple of its rest volume
+    /// (Terasawa §3.2, §4.2.1).
+    VolumeScale(f64),
+    /// Anticipation (Terasawa §4.2.2): pull the body's trailing part back against the coming
+    /// throw for `duration_secs`, then set its velocity to `velocity` (m/s).
+    Anticipate {
+        velocity: [f64; 3],
+        /// How far the trailing nodes are drawn back, m.
+        pull_back_m: f64,
+        duration_secs: f64,
+    },
+    /// A procedure registered by a plug-in on the host's registry, by name, with its own
+    /// arguments (see `crate::procedures::ProcedurePlugin`).
+    Plugin {
+        name: String,
+        #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+        args: toml::Table,
+    },
 }
 
 /// When an event fires (`on = { … }` in TOML).
@@ -481,6 +503,31 @@ fn validate_procedure(p: &Procedure, loc: &str) -> Result<(), EventError> {
         Procedure::ChangeMaterial(n) | Procedure::FollowTrajectory(n) => {
             if n.trim().is_empty() {
                 return bad("name must not be empty");
+            }
+        }
+        Procedure::VolumeScale(s) => {
+            if !(s.is_finite() && *s > 0.0) {
+                return bad("volume_scale must be finite and > 0");
+            }
+        }
+        Procedure::Anticipate {
+            velocity,
+            pull_back_m,
+            duration_secs,
+        } => {
+            if !finite_vec(velocity) || velocity.iter().all(|c| *c == 0.0) {
+                return bad("anticipate.velocity must be finite and not zero");
+            }
+            if !(pull_back_m.is_finite() && *pull_back_m > 0.0) {
+                return bad("anticipate.pull_back_m must be finite and > 0");
+            }
+            if !(duration_secs.is_finite() && *duration_secs > 0.0) {
+                return bad("anticipate.duration_secs must be finite and > 0");
+            }
+        }
+        Procedure::Plugin { name, .. } => {
+            if name.trim().is_empty() {
+                return bad("plugin.name must not be empty");
             }
         }
         Procedure::SwitchFeature(_) | Procedure::Pin | Procedure::Unpin | Procedure::Settle => {}

@@ -14,8 +14,12 @@ pub mod plugin;
 pub mod scene;
 
 pub use nalgebra;
+/// Re-exported for procedure plug-ins, whose arguments are TOML tables.
+pub use toml;
 pub mod events;
 pub mod hertz;
 pub mod polygon;
+pub mod procedures;
+pub mod secondary;
 pub mod shapes;
 pub mod solver;

@@ -1,9 +1,12 @@
 //! Plug-in points: importers and exporters register on a [`Registry`] that the host (CLI,
 //! watcher, viewer) queries, the way a DCC's plug-in host does. A [`Plugin`] only registers
 //! things; the built-in formats arrive as plugins exactly like a third-party crate would.
+//! Event procedures are a plug-in point too: a [`ProcedurePlugin`] registered here runs when a
+//! scene's event fires `{ plugin = { name, args } }`.
 
 use crate::bake::BakedScene;
 use crate::display::ImportedScene;
+pub use crate::procedures::ProcedurePlugin;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -121,6 +124,7 @@ pub trait Plugin {
 pub struct Registry {
     importers: Vec<Arc<dyn Importer>>,
     exporters: Vec<Arc<dyn Exporter>>,
+    procedures: Vec<Arc<dyn ProcedurePlugin>>,
 }
 
 fn extension_of(path: &Path) -> Option<String> {
@@ -147,6 +151,26 @@ impl Registry {
     pub fn register_exporter(&mut self, exporter: impl Exporter + 'static) -> &mut Self {
         self.exporters.push(Arc::new(exporter));
         self
+    }
+
+    /// Register an event procedure; a later one with the same name replaces it.
+    pub fn register_procedure(&mut self, procedure: impl ProcedurePlugin + 'static) -> &mut Self {
+        self.procedures.retain(|p| p.name() != procedure.name());
+        self.procedures.push(Arc::new(procedure));
+        self
+    }
+
+    /// The event procedure registered under `name`.
+    pub fn procedure(&self, name: &str) -> Option<&Arc<dyn ProcedurePlugin>> {
+        self.procedures.iter().find(|p| p.name() == name)
+    }
+
+    /// Names of the registered event procedures, for error messages.
+    pub fn procedure_names(&self) -> Vec<String> {
+        self.procedures
+            .iter()
+            .map(|p| p.name().to_owned())
+            .collect()
     }
 
     pub fn importers(&self) -> &[Arc<dyn Importer>] {

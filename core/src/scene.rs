@@ -28,6 +28,38 @@ pub struct SceneFile {
     /// Pin and trajectory constraints (Terasawa §3.1).
     #[serde(default)]
     pub constraint: Vec<ConstraintSection>,
+    /// Events and their procedures (physics §11; see `crate::events`, `crate::procedures`).
+    #[serde(default)]
+    pub event: Vec<crate::events::EventSpec>,
+    /// Named paths for the `follow_trajectory` procedure.
+    #[serde(default)]
+    pub trajectory: Vec<TrajectorySection>,
+    /// Secondary action: child bodies anchored to a parent through three nodes (eq 4.1).
+    #[serde(default)]
+    pub attach: Vec<AttachSection>,
+}
+
+/// `[[trajectory]]`: a named path for `follow_trajectory`; key times count from the firing,
+/// the body moves by the path's displacement from its first key.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectorySection {
+    pub name: String,
+    pub keys: Vec<PathKey>,
+    #[serde(default)]
+    pub interpolation: PathInterpolation,
+    #[serde(default = "default_strength")]
+    pub strength: f64,
+}
+
+/// `[[attach]]`: `child` hangs on `parent` by its three lattice nodes nearest to `anchors`
+/// (metres, world frame, after offsets).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachSection {
+    pub child: String,
+    pub parent: String,
+    pub anchors: [[f64; 3]; 3],
 }
 
 /// `[output]`
@@ -288,6 +320,19 @@ pub struct BodySection {
     /// Stiffness scale along x, y, z (anisotropy), e.g. `[1, 4, 1]` for a stiff column.
     #[serde(default = "default_stiffness_scale")]
     pub stiffness_scale: [f64; 3],
+    /// Exaggeration: multiplies the stiffness of this body's elastic contact layer.
+    #[serde(default = "default_contact_scale")]
+    pub contact_scale: f64,
+    /// The `bounce` feature settles once a rebound is slower than this, m/s.
+    #[serde(default = "default_bounce_tolerance")]
+    pub bounce_tolerance: f64,
+}
+
+fn default_contact_scale() -> f64 {
+    1.0
+}
+fn default_bounce_tolerance() -> f64 {
+    0.3
 }
 
 impl BodySection {
@@ -306,6 +351,8 @@ impl BodySection {
             preserve_volume: false,
             volume_scale: default_volume_scale(),
             stiffness_scale: default_stiffness_scale(),
+            contact_scale: default_contact_scale(),
+            bounce_tolerance: default_bounce_tolerance(),
         }
     }
 }

@@ -10,6 +10,7 @@
 //!
 //! [`bake`] runs all four and returns the report (`--report` JSON).
 
+pub mod events;
 mod frame;
 mod report;
 mod simulate;
@@ -187,6 +188,7 @@ pub fn validate_scene(scene: &SceneFile) -> Result<(), String> {
             ));
         }
     }
+    events::validate(scene)?;
     for (i, m) in scene.manipulator.iter().enumerate() {
         if !(m.radius > 0.0 && m.length >= 0.0) {
             return Err(format!(
@@ -339,7 +341,7 @@ pub fn bake(
         report: Report {
             bodies: prepared.body_reports(),
             frames,
-            events: Vec::new(),
+            events: prepared.event_report(),
             seconds,
         },
         outputs: files.into_iter().map(|f| f.path).collect(),

@@ -8,7 +8,8 @@ pub struct Report {
     pub bodies: Vec<BodyReport>,
     /// One entry per output frame; values summed (energies) or maxed (penetration) over bodies.
     pub frames: Vec<FrameDiagnostics>,
-    /// Event firings `{ frame, body, event, procedure }` (none until scenes declare events).
+    /// Event firings `{ frame, body, event, procedure }` in firing order (frame, then event
+    /// declaration order, then procedure order); empty without `[[event]]`.
     pub events: Vec<serde_json::Value>,
     pub seconds: Seconds,
 }

@@ -26,6 +26,8 @@ use std::time::Instant;
 #[derive(Debug, Clone)]
 pub struct PreparedBody {
     pub name: String,
+    /// Index of the `[[body]]` section it came from.
+    pub section: usize,
     /// Index into [`Prepared::export_scene`]'s meshes.
     pub mesh_index: usize,
     pub lattice: Lattice,
@@ -46,6 +48,9 @@ pub struct Prepared {
     pub frame: SimFrame,
     /// Floor height along up, metres, if any.
     pub floor: Option<f64>,
+    /// The scene's events, motion features and attachments (none without `[[event]]` or
+    /// `[[attach]]`).
+    pub events: Option<crate::events::EventDriver>,
 }
 
 fn import_all(
@@ -357,6 +362,7 @@ pub fn prepare(
         body_names.push((section.name.clone(), p.name.clone(), handle));
         bodies.push(PreparedBody {
             name: p.name,
+            section: p.body,
             mesh_index: p.mesh_index,
             lattice,
             embedding,
@@ -366,12 +372,22 @@ pub fn prepare(
         });
     }
     add_constraints(scene, &mut world, &body_names)?;
+    let events = crate::events::EventDriver::wire(scene, registry, &mut world, &bodies).map_err(
+        |message| match &loaded.scene_path {
+            Some(path) => PipelineError::Scene {
+                path: path.clone(),
+                message,
+            },
+            None => PipelineError::Usage(message),
+        },
+    )?;
     Ok(Prepared {
         world,
         bodies,
         export_scene,
         frame,
         floor,
+        events,
     })
 }
 
@@ -535,6 +551,10 @@ impl Prepared {
             })
             .collect();
         let mut diagnostics = Vec::with_capacity(total);
+        if let Some(events) = self.events.as_mut() {
+            // Events of frame 1 (t = 0) act before it is recorded, like every later frame's.
+            events.after_frame(&mut self.world, 1, fps)?;
+        }
         let mut first = self.world.diagnostics(1);
         first.max_penetration = self.current_penetration();
         diagnostics.push(first);
@@ -548,7 +568,13 @@ impl Prepared {
             if cancelled() {
                 return Err(springbake_core::solver::SimulationError::Cancelled.into());
             }
+            if let Some(events) = self.events.as_mut() {
+                events.before_frame(&mut self.world, fps)?;
+            }
             let d = self.world.advance_frame(1.0 / fps, f, cancelled)?;
+            if let Some(events) = self.events.as_mut() {
+                events.after_frame(&mut self.world, f, fps)?;
+            }
             diagnostics.push(d);
             self.record(&mut meshes, with_lattice);
             if let Some(p) = hooks.progress.as_mut() {
