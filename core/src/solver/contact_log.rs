@@ -76,7 +76,7 @@ pub struct ContactLog {
     frame: Vec<FramePair>,
     records: Vec<ContactRecord>,
     /// Reused buffer for the manipulators of a step that has no contact pass of its own.
-    capsules_scratch: Vec<Capsule>,
+    pub(crate) capsules_scratch: Vec<Capsule>,
 }
 
 impl ContactLog {
@@ -383,63 +383,6 @@ pub(crate) fn observe_nodes(
             }
         }
     }
-}
-
-/// One step's logging of the rigid-surface contacts, from the state the step's forces are
-/// evaluated at: sizes the table, starts the step, observes, ends the step. `depths`: the
-/// contact pass's deepest penetration per surface point, if it ran.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn log_step(
-    log: &mut ContactLog,
-    scene: &RigidScene,
-    surface: &SurfacePoints,
-    nodes: &NodeState,
-    node_contact: &[bool],
-    bodies: &[BodyInfo],
-    colliders: usize,
-    depths: Option<&dyn Fn(usize) -> f64>,
-) {
-    log.ensure(bodies.len(), scene.capsules.len(), colliders);
-    log.begin_step();
-    observe_rigid(
-        log,
-        scene,
-        surface,
-        nodes,
-        &nodes.velocity,
-        node_contact,
-        bodies,
-        depths,
-    );
-    log.end_step();
-}
-
-/// [`log_step`] for a Newmark-β step (no contact pass of its own to share): the manipulators
-/// at the world's time go into a reused buffer; points are observed one step ahead.
-pub(crate) fn log_step_of(world: &mut super::World, dt: f64) {
-    let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
-    caps.clear();
-    caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
-    caps.extend(world.live_capsules.iter().copied());
-    let scene = RigidScene {
-        layer: &world.settings.layer,
-        planes: &world.settings.planes,
-        capsules: &caps,
-        up: world.settings.up,
-        dt,
-        lead: dt,
-    };
-    log_step(
-        &mut world.contact_log,
-        &scene,
-        &world.surface,
-        &world.nodes,
-        &world.node_contact,
-        &world.bodies,
-        0,
-        None,
-    );
-    world.contact_log.capsules_scratch = caps;
 }
 
 #[cfg(test)]

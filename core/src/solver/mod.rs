@@ -9,6 +9,7 @@
 //! disjoint slots and every reduction runs in fixed-size chunks, so results are identical bit
 //! for bit whatever the thread count.
 
+pub mod body_contact;
 pub mod constraints;
 mod contact;
 pub mod contact_log;
@@ -23,6 +24,7 @@ pub mod substeps;
 pub mod volume;
 mod world;
 
+pub use body_contact::ContactModel;
 pub use constraints::{
     nearest_node, nodes_in_box, ConstraintError, Interpolation, Path, TrajectoryConstraint, Wind,
 };

@@ -158,6 +158,10 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
         if surface_contact {
             f += st.surface_force[i];
         }
+        if world.body_contact.active {
+            // Body–body and collider contacts, from the step's starting state.
+            f += world.body_contact.force[i];
+        }
         if has_contact && world.node_contact[i] {
             let (cf, d, _) = node_contacts(
                 &settings.layer,

@@ -3,9 +3,10 @@
 //! dispersion → position update; or Newmark-β, see [`super::newmark`]), then the constraints of
 //! the step: path constraints under symplectic Euler, rigid frames, volume preservation.
 
+use super::body_contact::{step_contacts, BodyContact};
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{node_contacts, ContactLayer, Plane};
-use super::contact_log::{log_step, ContactLog, ContactRecord, RigidScene};
+use super::contact_log::{ContactLog, ContactRecord, RigidScene};
 use super::deformation_damping::rigid_motion;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
@@ -131,6 +132,8 @@ pub struct World {
     pub(crate) newmark: Option<NewmarkState>,
     /// What each body touched during the last frame (see [`super::contact_log`]).
     pub(crate) contact_log: ContactLog,
+    /// Body–body and body–collider contact (see [`super::body_contact`]).
+    pub(crate) body_contact: BodyContact,
     prepared: Option<Prepared>,
 }
 
@@ -287,6 +290,7 @@ impl World {
             rigid: Vec::new(),
             newmark: None,
             contact_log: ContactLog::default(),
+            body_contact: BodyContact::default(),
             prepared: None,
         }
     }
@@ -490,7 +494,8 @@ impl World {
         }
         let has_contact = !self.settings.planes.is_empty()
             || !self.manipulators.is_empty()
-            || !self.live_capsules.is_empty();
+            || !self.live_capsules.is_empty()
+            || self.body_contact.any();
         let layer_k = if has_contact {
             self.settings.layer.stiffness
         } else {
@@ -625,7 +630,7 @@ impl World {
                 tolerance,
                 max_iterations,
             } => {
-                super::contact_log::log_step_of(self, dt);
+                super::body_contact::step_contacts_of(self, dt);
                 let out = super::newmark::step(self, dt, beta, tolerance, max_iterations);
                 self.time += dt;
                 acc.max_depth = acc.max_depth.max(out.max_depth);
@@ -695,6 +700,7 @@ impl World {
             node_contact,
             bodies,
             contact_log,
+            body_contact,
             ..
         } = self;
         let p = prepared.as_mut().expect("prepared");
@@ -813,8 +819,9 @@ impl World {
                 acc.reaction_sum -= from_caps;
             }
         }
-        // The contact log: this step's contacts per (body, partner), at the state the forces
-        // are evaluated at (only the points the pass above found touching are looked at again).
+        // Body–body and body–collider contacts, and the contact log: this step's contacts per
+        // (body, partner), at the state the forces are evaluated at (only the points the pass
+        // above found touching are looked at again).
         {
             let point_contact = &p.point_contact;
             let depths = |i: usize| point_contact.get(i).map_or(0.0, |c| c.1);
@@ -827,14 +834,14 @@ impl World {
                 lead: 0.0,
             };
             let hint: &dyn Fn(usize) -> f64 = &depths;
-            log_step(
+            step_contacts(
+                body_contact,
                 contact_log,
                 &scene,
                 surface,
                 nodes,
                 node_contact,
                 bodies,
-                0,
                 surface_contact.then_some(hint),
             );
         }
@@ -843,6 +850,7 @@ impl World {
         {
             let node_contact = &node_contact[..];
             let surface_force = &p.surface_force[..];
+            let body_force = body_contact.active.then_some(&body_contact.force[..]);
             let planes = &settings.planes[..];
             let caps = &p.capsules[..];
             let adjacency = &p.adjacency;
@@ -865,6 +873,9 @@ impl World {
                             gravity * mass[i] + gathered_spring_force(adjacency, spring_force, i);
                         if surface_contact {
                             f += surface_force[i];
+                        }
+                        if let Some(bf) = body_force {
+                            f += bf[i];
                         }
                         if let Some((w, air)) = wind {
                             f += w.force(air, *v, mass[i]);

@@ -1,0 +1,154 @@
+//! Collision geometry, format-free (physics §10): exact point/segment/triangle queries
+//! ([`geometry`]), the uniform-grid broad phase ([`grid`]) and static colliders
+//! ([`StaticCollider`]: a rigid triangle mesh in the simulation frame with a grid over its
+//! triangles, built once). The solver's body–body and body–collider contact pass
+//! (`solver::body_contact`) uses them.
+
+pub mod geometry;
+pub mod grid;
+
+pub use grid::BoxGrid;
+
+use nalgebra::{Point3, Vector3};
+
+/// A rigid triangle mesh bodies collide with (a lane, a table, a ramp), in simulation metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticCollider {
+    pub name: String,
+    pub positions: Vec<Vector3<f64>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Unit face normals (counter-clockwise front: the side bodies are pushed to).
+    pub normals: Vec<Vector3<f64>>,
+    /// Coulomb friction coefficient on its surface.
+    pub friction: f64,
+    /// Bounding box of the mesh.
+    pub lo: Vector3<f64>,
+    pub hi: Vector3<f64>,
+    pub(crate) grid: BoxGrid,
+}
+
+/// A collider mesh that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ColliderError {
+    #[error("collider \"{0}\" has no triangles")]
+    Empty(String),
+    #[error("collider \"{name}\": vertex {vertex} is not finite")]
+    NonFinite { name: String, vertex: usize },
+    #[error("collider \"{name}\": triangle {triangle} uses vertex {index}, but there are {count}")]
+    BadIndex {
+        name: String,
+        triangle: usize,
+        index: u32,
+        count: usize,
+    },
+    #[error("collider \"{name}\": friction must be finite and >= 0, got {value}")]
+    BadFriction { name: String, value: f64 },
+}
+
+impl StaticCollider {
+    /// A collider from triangles over `positions` (simulation metres). Zero-area triangles are
+    /// kept but never touched (their normal is zero).
+    pub fn new(
+        name: impl Into<String>,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        friction: f64,
+    ) -> Result<StaticCollider, ColliderError> {
+        let name = name.into();
+        if triangles.is_empty() {
+            return Err(ColliderError::Empty(name));
+        }
+        if !(friction.is_finite() && friction >= 0.0) {
+            return Err(ColliderError::BadFriction {
+                name,
+                value: friction,
+            });
+        }
+        if let Some(vertex) = positions
+            .iter()
+            .position(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()))
+        {
+            return Err(ColliderError::NonFinite { name, vertex });
+        }
+        for (triangle, t) in triangles.iter().enumerate() {
+            if let Some(&index) = t.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(ColliderError::BadIndex {
+                    name,
+                    triangle,
+                    index,
+                    count: positions.len(),
+                });
+            }
+        }
+        let positions: Vec<Vector3<f64>> = positions.iter().map(|p| p.coords).collect();
+        let corners = |t: &[u32; 3]| t.map(|i| positions[i as usize]);
+        let normals = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = corners(t);
+                geometry::triangle_normal(&a, &b, &c)
+            })
+            .collect();
+        let (mut lo, mut hi) = (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        );
+        let mut edge_sum = 0.0;
+        for t in triangles {
+            let [a, b, c] = corners(t);
+            for p in [a, b, c] {
+                lo = lo.inf(&p);
+                hi = hi.sup(&p);
+            }
+            edge_sum += (b - a).norm() + (c - b).norm() + (a - c).norm();
+        }
+        let mut grid = BoxGrid::default();
+        grid.build(
+            lo,
+            hi,
+            edge_sum / (3.0 * triangles.len() as f64),
+            triangles.len(),
+            triangles.iter().enumerate().map(|(i, t)| {
+                let [a, b, c] = corners(t);
+                (i as u32, a.inf(&b).inf(&c), a.sup(&b).sup(&c))
+            }),
+        );
+        Ok(StaticCollider {
+            name,
+            positions,
+            triangles: triangles.to_vec(),
+            normals,
+            friction,
+            lo,
+            hi,
+            grid,
+        })
+    }
+
+    /// Corners of triangle `t`.
+    pub fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+        self.triangles[t].map(|i| self.positions[i as usize])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::box_mesh;
+
+    #[test]
+    fn bad_colliders_are_refused_with_their_name() {
+        let (p, t) = box_mesh([0.0; 3], [1.0; 3]);
+        let c = StaticCollider::new("lane", &p, &t, 0.3).unwrap();
+        assert_eq!(c.triangles.len(), 12);
+        assert_eq!((c.lo, c.hi), (Vector3::zeros(), Vector3::repeat(1.0)));
+        // Outward normals of the box: the top face's point up.
+        assert_eq!(c.normals[6], Vector3::y());
+        let e = StaticCollider::new("lane", &p, &[], 0.3).unwrap_err();
+        assert!(e.to_string().contains("\"lane\""), "{e}");
+        let e = StaticCollider::new("lane", &p, &[[0, 1, 9]], 0.3).unwrap_err();
+        assert!(e.to_string().contains("vertex 9"), "{e}");
+        let e = StaticCollider::new("lane", &p, &t, -1.0).unwrap_err();
+        assert!(e.to_string().contains("friction"), "{e}");
+    }
+}

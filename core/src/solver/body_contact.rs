@@ -1,0 +1,1097 @@
+//! Contact between simulated bodies, and of bodies with static colliders (physics §10,
+//! Terasawa §3.3.1), evaluated once per step in the force pass.
+//!
+//! **Detection.** Each body's display surface takes part twice: its contact samples (the
+//! world's [`SurfacePoints`], embedded in its lattice) are the *vertices*, its display
+//! triangles (registered with [`World::add_collision_surface`], every vertex embedded in the
+//! lattice too) the *faces*. Broad phase: the bodies' node boxes (every embedded point lies in
+//! the convex hull of its cell's nodes), then, for an overlapping pair, a uniform grid
+//! ([`BoxGrid`]) over the other body's triangles inside the overlap, rebuilt per step (cost
+//! linear in the triangles there). Narrow phase:
+//! - vertex–face: the segment from the point's previous position (relative to the face,
+//!   `x − (v − v_face) Δt`) to its position now; a segment that enters a face from its front
+//!   side is a contact with that face even if the point went deep (no tunnelling within a
+//!   step); otherwise the nearest face within the layer outside the surface, or a face the
+//!   point lies just behind (less than a partner cell deep);
+//! - edge–edge: mesh edges of one body against the other's, closest points inside both edges,
+//!   direction the normal of the plane through both edges, turned out of the other body.
+//!
+//! Static colliders ([`StaticCollider`]) take vertex–face contacts of the bodies' samples.
+//!
+//! **Response.** [`ContactModel::ElasticLayer`] (default): the layer lies *outside* the
+//! partner's surface (a point is pushed once it is closer than the layer thickness `h`), with
+//! the floor's stiffness per unit of sample area (`k · share`), a damper for the pair's reduced
+//! share of mass, and Coulomb friction (the world's, or the collider's). Touching bodies rest
+//! about `h` apart less the layer's compression, so no vertex enters the other surface.
+//! [`ContactModel::Hertz`]: the total normal force of a (body, partner) pair is Hertz's
+//! `F = n2 α^(3/2)` ([`crate::hertz`], eq 3.34), α the deepest penetration into the layer;
+//! `n2` is fixed at the first touch of a contact episode from the mass-spring model: Young's
+//! modulus from the springs (eq 3.38, `A_sp = L²`), Poisson 0.3, the local radius from the
+//! surface edges near the contact (eq 3.41; a flat surface, or one flatter than the body,
+//! reads as half the body's size); a static collider is rigid (δ = 0). `F` is shared among the
+//! pair's contacts in proportion to `share · sqrt(depth)` (Hertz's pressure profile), with
+//! Coulomb friction and no normal damping (the pulse is elastic, eq 3.29).
+//!
+//! **Forces** go to nodes by the embedding weights: a sample to its cell's 8 nodes (trilinear),
+//! a face point to its triangle's vertices (barycentric) and each vertex to its cell's nodes;
+//! the partner gets the opposite force, so momentum is conserved exactly. Everything is serial,
+//! in body, point and triangle order: the same bits on any thread count. Scratch buffers are
+//! kept between steps.
+
+use super::contact::{layer_force, ContactLayer};
+use super::contact_log::{observe_rigid, ContactLog, ContactPartner, RigidScene};
+use super::world::{BodyHandle, BodyInfo, SurfacePoints};
+use super::{NodeState, World};
+use crate::collide::geometry::{
+    closest_between_segments, closest_on_triangle, segment_crosses_triangle, triangle_normal,
+};
+use crate::collide::{BoxGrid, StaticCollider};
+use crate::hertz::{self, SurfaceEdge, SurfaceRadius};
+use crate::lattice::{Embedding, Lattice};
+use nalgebra::{Point3, Vector3};
+use std::ops::Range;
+
+/// How bodies push on each other and on static colliders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ContactModel {
+    /// The floor's elastic layer: penalty along the face normal, damper, Coulomb friction.
+    #[default]
+    ElasticLayer,
+    /// Hertz's force law with parameters from the mass-spring model (module docs).
+    Hertz,
+}
+
+/// A body's display surface for body–body contact.
+#[derive(Debug, Clone, PartialEq)]
+struct BodyMesh {
+    body: usize,
+    /// Per vertex: its cell's world node indices and trilinear weights.
+    nodes: Vec<[u32; 8]>,
+    weights: Vec<[f64; 8]>,
+    triangles: Vec<[u32; 3]>,
+    /// Unique edges of the display mesh as given (before refinement) `[a, b, c]`: `c` the
+    /// third corner of a triangle holding the edge, so `(a, b, c)` gives its outward normal.
+    edges: Vec<[u32; 3]>,
+    /// The display triangles as given (for the local radius of curvature).
+    display: Vec<[u32; 3]>,
+    /// Mean edge length at rest, m (the grid's cell).
+    mean_edge: f64,
+    /// The lattice cell, m.
+    cell: f64,
+    /// Young's modulus read off the springs (eq 3.38, `A_sp = L²`), Pa.
+    young: f64,
+    /// The step whose vertex positions and velocities `x`, `v` hold.
+    stamp: u64,
+    x: Vec<Vector3<f64>>,
+    v: Vec<Vector3<f64>>,
+}
+
+impl BodyMesh {
+    fn update(&mut self, nodes: &NodeState, stamp: u64) {
+        if self.stamp == stamp {
+            return;
+        }
+        self.stamp = stamp;
+        for (k, (ids, w)) in self.nodes.iter().zip(&self.weights).enumerate() {
+            let (mut x, mut v) = (Vector3::zeros(), Vector3::zeros());
+            for c in 0..8 {
+                x += nodes.position[ids[c] as usize] * w[c];
+                v += nodes.velocity[ids[c] as usize] * w[c];
+            }
+            self.x[k] = x;
+            self.v[k] = v;
+        }
+    }
+
+    fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+        self.triangles[t].map(|i| self.x[i as usize])
+    }
+}
+
+/// An edge–edge contact stands for one sample's area: `(L/2)²` over a cell face `L²`.
+const EDGE_SHARE: f64 = 0.25;
+
+/// Each body's samples carry half the layer's stiffness against another body: where two faces
+/// meet, both sides' samples push, and together they feel the floor's layer.
+const BODY_LAYER_FRACTION: f64 = 0.5;
+
+/// One side of a contact: where its force acts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Feature {
+    /// A surface sample (index into the world's [`SurfacePoints`]).
+    Point(usize),
+    /// A point of triangle `tri` of mesh `mesh` with barycentric weights.
+    Face {
+        mesh: usize,
+        tri: usize,
+        bary: [f64; 3],
+    },
+    /// The point `(1 − s) a + s b` of an edge of mesh `mesh`.
+    Edge { mesh: usize, a: u32, b: u32, s: f64 },
+    /// A static collider (takes no force).
+    Static,
+}
+
+/// One contact of body `a` with its partner: normal from the partner into `a`'s side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Contact {
+    a: Feature,
+    b: Feature,
+    normal: Vector3<f64>,
+    depth: f64,
+    /// Velocity of `a`'s point relative to the partner's.
+    relative_velocity: Vector3<f64>,
+    /// Sample area over a lattice face (`a`'s cell), for the layer's stiffness per point.
+    share: f64,
+}
+
+/// The contact pass's state: meshes, colliders, the model, the force it leaves for the node
+/// pass, and scratch buffers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BodyContact {
+    pub model: ContactModel,
+    meshes: Vec<BodyMesh>,
+    colliders: Vec<StaticCollider>,
+    /// Per node: the contact forces of this step (valid when `active`).
+    pub(crate) force: Vec<Vector3<f64>>,
+    pub(crate) active: bool,
+    step: u64,
+    /// Per body: node box, surface point range, mass per unit of share, mesh index.
+    boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    points: Vec<Range<usize>>,
+    mass_per_share: Vec<f64>,
+    mass: Vec<f64>,
+    mesh_of: Vec<Option<usize>>,
+    /// (bodies, surface points) the per-body tables were built for.
+    built_for: (usize, usize),
+    grid: BoxGrid,
+    candidates: Vec<u32>,
+    contacts: Vec<Contact>,
+    /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
+    hertz_n2: Vec<Option<f64>>,
+    normals: Vec<Vector3<f64>>,
+}
+
+impl BodyContact {
+    /// Whether any pair can touch (two bodies with surfaces, or a collider).
+    pub fn any(&self) -> bool {
+        !self.colliders.is_empty() || !self.meshes.is_empty()
+    }
+
+    fn partner_slots(&self) -> usize {
+        self.boxes.len() + self.colliders.len()
+    }
+
+    fn tables(&mut self, nodes: &NodeState, surface: &SurfacePoints, bodies: &[BodyInfo]) {
+        if self.built_for == (bodies.len(), surface.len())
+            && self.mass.len() == bodies.len()
+            && self.hertz_n2.len() == bodies.len() * self.partner_slots()
+        {
+            return;
+        }
+        self.built_for = (bodies.len(), surface.len());
+        self.points = vec![0..0; bodies.len()];
+        let mut i = 0;
+        while i < surface.len() {
+            let b = surface.body[i] as usize;
+            let start = i;
+            while i < surface.len() && surface.body[i] as usize == b {
+                i += 1;
+            }
+            if let Some(r) = self.points.get_mut(b) {
+                *r = start..i;
+            }
+        }
+        self.mass = bodies
+            .iter()
+            .map(|b| nodes.mass[b.nodes.clone()].iter().sum())
+            .collect();
+        self.mass_per_share = self
+            .points
+            .iter()
+            .map(|r| {
+                let share: f64 = surface.share[r.clone()].iter().sum();
+                let mass: f64 = surface.body_mass[r.clone()].iter().sum();
+                if share > 0.0 {
+                    mass / share
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        self.mesh_of = vec![None; bodies.len()];
+        for (m, mesh) in self.meshes.iter().enumerate() {
+            if let Some(slot) = self.mesh_of.get_mut(mesh.body) {
+                *slot = Some(m);
+            }
+        }
+        self.boxes = vec![(Vector3::zeros(), Vector3::zeros()); bodies.len()];
+        self.hertz_n2 = vec![None; bodies.len() * (bodies.len() + self.colliders.len())];
+    }
+}
+
+/// What one contact pass needs from the world.
+pub(crate) struct PassInput<'a> {
+    pub nodes: &'a NodeState,
+    pub surface: &'a SurfacePoints,
+    pub bodies: &'a [BodyInfo],
+    pub layer: &'a ContactLayer,
+    pub dt: f64,
+}
+
+/// One step's contacts for the log and the node pass: sizes and begins the log's step, logs
+/// the rigid-surface contacts (see [`super::contact_log`]), runs [`contact_pass`], ends the
+/// log's step. `depths`: the surface contact pass's deepest penetration per point, if it ran.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn step_contacts(
+    bc: &mut BodyContact,
+    log: &mut ContactLog,
+    scene: &RigidScene,
+    surface: &SurfacePoints,
+    nodes: &NodeState,
+    node_contact: &[bool],
+    bodies: &[BodyInfo],
+    depths: Option<&dyn Fn(usize) -> f64>,
+) {
+    log.ensure(bodies.len(), scene.capsules.len(), bc.colliders.len());
+    log.begin_step();
+    observe_rigid(
+        log,
+        scene,
+        surface,
+        nodes,
+        &nodes.velocity,
+        node_contact,
+        bodies,
+        depths,
+    );
+    let input = PassInput {
+        nodes,
+        surface,
+        bodies,
+        layer: scene.layer,
+        dt: scene.dt,
+    };
+    contact_pass(bc, log, &input);
+    log.end_step();
+}
+
+/// [`step_contacts`] for a Newmark-β step (no surface contact pass of its own to share): the
+/// manipulators at the world's time go into a reused buffer; rigid surfaces are observed one
+/// step ahead (Newmark's contacts take predicted positions).
+pub(crate) fn step_contacts_of(world: &mut World, dt: f64) {
+    let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
+    caps.clear();
+    caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
+    caps.extend(world.live_capsules.iter().copied());
+    let scene = RigidScene {
+        layer: &world.settings.layer,
+        planes: &world.settings.planes,
+        capsules: &caps,
+        up: world.settings.up,
+        dt,
+        lead: dt,
+    };
+    step_contacts(
+        &mut world.body_contact,
+        &mut world.contact_log,
+        &scene,
+        &world.surface,
+        &world.nodes,
+        &world.node_contact,
+        &world.bodies,
+        None,
+    );
+    world.contact_log.capsules_scratch = caps;
+}
+
+/// The step's body–body and body–collider contacts: forces into `bc.force` (`bc.active` says
+/// whether there are any), contacts into the log (already sized and begun for the step).
+pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &PassInput) {
+    if bc.active {
+        bc.force.iter_mut().for_each(|f| *f = Vector3::zeros());
+        bc.active = false;
+    }
+    if !bc.any() {
+        return;
+    }
+    let PassInput {
+        nodes,
+        surface,
+        bodies,
+        layer,
+        dt,
+    } = *input;
+    bc.tables(nodes, surface, bodies);
+    bc.step += 1;
+    if bc.force.len() != nodes.len() {
+        bc.force = vec![Vector3::zeros(); nodes.len()];
+    }
+    let h = layer.thickness_m;
+    for (b, info) in bodies.iter().enumerate() {
+        let (mut lo, mut hi) = (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        );
+        if bc.mesh_of[b].is_some() || !bc.points[b].is_empty() {
+            for x in &nodes.position[info.nodes.clone()] {
+                lo = lo.inf(x);
+                hi = hi.sup(x);
+            }
+        }
+        bc.boxes[b] = (lo, hi);
+    }
+    let n_bodies = bodies.len();
+    for a in 0..n_bodies {
+        for b in a + 1..n_bodies {
+            let (alo, ahi) = bc.boxes[a];
+            let (blo, bhi) = bc.boxes[b];
+            let lo = alo.sup(&blo).add_scalar(-h);
+            let hi = ahi.inf(&bhi).add_scalar(h);
+            let apart = (0..3).any(|k| lo[k] > hi[k]);
+            let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
+            bc.contacts.clear();
+            if !apart && has_faces {
+                detect_pair(bc, input, a, b, lo, hi);
+                detect_pair(bc, input, b, a, lo, hi);
+                detect_edges(bc, input, a, b, lo, hi);
+            }
+            respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
+        }
+    }
+    for a in 0..n_bodies {
+        for c in 0..bc.colliders.len() {
+            let (alo, ahi) = bc.boxes[a];
+            let col = &bc.colliders[c];
+            let lo = alo.sup(&col.lo).add_scalar(-h);
+            let hi = ahi.inf(&col.hi).add_scalar(h);
+            bc.contacts.clear();
+            if !(0..3).any(|k| lo[k] > hi[k]) {
+                detect_collider(bc, input, a, c, lo, hi);
+            }
+            let friction = bc.colliders[c].friction;
+            let collider_layer = ContactLayer { friction, ..*layer };
+            respond(
+                bc,
+                log,
+                input,
+                a,
+                ContactPartner::Collider(c),
+                collider_layer,
+                dt,
+            );
+        }
+    }
+}
+
+/// Position and velocity of a surface sample.
+fn sample(surface: &SurfacePoints, nodes: &NodeState, i: usize) -> (Vector3<f64>, Vector3<f64>) {
+    let (ids, w) = (&surface.nodes[i], &surface.weights[i]);
+    let (mut x, mut v) = (Vector3::zeros(), Vector3::zeros());
+    for c in 0..8 {
+        x += nodes.position[ids[c] as usize] * w[c];
+        v += nodes.velocity[ids[c] as usize] * w[c];
+    }
+    (x, v)
+}
+
+fn inside(p: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> bool {
+    (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
+}
+
+/// The best face contact of a point at `x` moving at `v` against triangles `candidates` with
+/// corners from `corners(t)`, velocities `vel(t)` (at barycentric weights) and normals: a
+/// crossing of the segment from the previous position first, else the nearest face within the
+/// layer, or one the point lies just behind (at most `behind` deep).
+#[allow(clippy::too_many_arguments)]
+fn best_face(
+    x: Vector3<f64>,
+    v: Vector3<f64>,
+    dt: f64,
+    h: f64,
+    behind: f64,
+    candidates: &[u32],
+    corners: &dyn Fn(usize) -> [Vector3<f64>; 3],
+    velocity: &dyn Fn(usize, [f64; 3]) -> Vector3<f64>,
+) -> Option<FaceHit> {
+    // (segment parameter or distance, hit)
+    let mut crossing: Option<(f64, FaceHit)> = None;
+    let mut near: Option<(f64, FaceHit)> = None;
+    for &t in candidates {
+        let t = t as usize;
+        let [a, b, c] = corners(t);
+        let n = triangle_normal(&a, &b, &c);
+        if n == Vector3::zeros() {
+            continue;
+        }
+        let (bary, interior) = closest_on_triangle(&x, &a, &b, &c);
+        let q = a * bary[0] + b * bary[1] + c * bary[2];
+        let vq = velocity(t, bary);
+        let rel = v - vq;
+        let s_now = (x - a).dot(&n);
+        let prev = x - rel * dt;
+        if s_now < 0.0 && (prev - a).dot(&n) > 0.0 {
+            if let Some((u, w)) = segment_crosses_triangle(&prev, &x, &a, &b, &c) {
+                if crossing.is_none_or(|c| u < c.0) {
+                    let hit = FaceHit {
+                        tri: t,
+                        bary: w,
+                        normal: n,
+                        depth: h - s_now,
+                        velocity: velocity(t, w),
+                    };
+                    crossing = Some((u, hit));
+                }
+            }
+        }
+        let d = (x - q).norm();
+        let side = (x - q).dot(&n);
+        let candidate = if side >= 0.0 && d < h {
+            let normal = if interior || d <= 1e-12 {
+                n
+            } else {
+                (x - q) / d
+            };
+            Some((d, normal, h - d))
+        } else if side < 0.0 && interior && d < behind {
+            Some((d, n, h + d))
+        } else {
+            None
+        };
+        if let Some((d, normal, depth)) = candidate {
+            if near.is_none_or(|n| d < n.0) {
+                let hit = FaceHit {
+                    tri: t,
+                    bary,
+                    normal,
+                    depth,
+                    velocity: vq,
+                };
+                near = Some((d, hit));
+            }
+        }
+    }
+    crossing.or(near).map(|(_, hit)| hit)
+}
+
+/// A sample's contact with a face: triangle, barycentric weights of the face point, normal
+/// out of the face's body, depth into the layer, the face point's velocity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct FaceHit {
+    tri: usize,
+    bary: [f64; 3],
+    normal: Vector3<f64>,
+    depth: f64,
+    velocity: Vector3<f64>,
+}
+
+/// Vertex–face contacts of body `a`'s samples with body `b`'s triangles inside `[lo, hi]`.
+fn detect_pair(
+    bc: &mut BodyContact,
+    input: &PassInput,
+    a: usize,
+    b: usize,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+) {
+    let Some(mb) = bc.mesh_of[b] else {
+        return;
+    };
+    if bc.points[a].is_empty() {
+        return;
+    }
+    let (h, dt) = (input.layer.thickness_m, input.dt);
+    let stamp = bc.step;
+    bc.meshes[mb].update(input.nodes, stamp);
+    let mesh = &bc.meshes[mb];
+    bc.grid.build(
+        lo,
+        hi,
+        mesh.mean_edge,
+        mesh.triangles.len(),
+        (0..mesh.triangles.len()).map(|t| {
+            let [p, q, r] = mesh.corners(t);
+            (
+                t as u32,
+                p.inf(&q).inf(&r).add_scalar(-h),
+                p.sup(&q).sup(&r).add_scalar(h),
+            )
+        }),
+    );
+    if bc.grid.is_empty() {
+        return;
+    }
+    let behind = mesh.cell;
+    let corners = |t: usize| mesh.corners(t);
+    let velocity = |t: usize, w: [f64; 3]| {
+        let tri = mesh.triangles[t];
+        (0..3).map(|k| mesh.v[tri[k] as usize] * w[k]).sum()
+    };
+    for i in bc.points[a].clone() {
+        let (x, v) = sample(input.surface, input.nodes, i);
+        if !inside(&x, &lo, &hi) {
+            continue;
+        }
+        let prev = x - v * dt;
+        let (qlo, qhi) = (x.inf(&prev).add_scalar(-h), x.sup(&prev).add_scalar(h));
+        bc.grid.query(&qlo, &qhi, &mut bc.candidates);
+        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &velocity) {
+            bc.contacts.push(Contact {
+                a: Feature::Point(i),
+                b: Feature::Face {
+                    mesh: mb,
+                    tri: hit.tri,
+                    bary: hit.bary,
+                },
+                normal: hit.normal,
+                depth: hit.depth,
+                relative_velocity: v - hit.velocity,
+                share: input.surface.share[i],
+            });
+        }
+    }
+}
+
+/// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` (the grid
+/// is rebuilt here over `b`'s edges). Only edges whose faces meet at an angle (face normals
+/// more than 30° from opposite): between parallel faces the samples' vertex–face contacts
+/// already carry the load.
+fn detect_edges(
+    bc: &mut BodyContact,
+    input: &PassInput,
+    a: usize,
+    b: usize,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+) {
+    let (Some(ma), Some(mb)) = (bc.mesh_of[a], bc.mesh_of[b]) else {
+        return;
+    };
+    let h = input.layer.thickness_m;
+    let stamp = bc.step;
+    bc.meshes[ma].update(input.nodes, stamp);
+    bc.meshes[mb].update(input.nodes, stamp);
+    let (ea, eb) = (&bc.meshes[ma], &bc.meshes[mb]);
+    bc.grid.build(
+        lo,
+        hi,
+        eb.mean_edge,
+        eb.edges.len(),
+        eb.edges.iter().enumerate().map(|(k, &[i, j, _])| {
+            let (p, q) = (eb.x[i as usize], eb.x[j as usize]);
+            (k as u32, p.inf(&q).add_scalar(-h), p.sup(&q).add_scalar(h))
+        }),
+    );
+    if bc.grid.is_empty() {
+        return;
+    }
+    let behind = eb.cell.min(ea.cell);
+    let parallel = -(30f64.to_radians().cos());
+    // One contact per edge of `a`: its nearest qualifying edge of `b`.
+    let share = EDGE_SHARE;
+    for &[u, w, third] in &ea.edges {
+        let (p0, p1) = (ea.x[u as usize], ea.x[w as usize]);
+        let (elo, ehi) = (p0.inf(&p1), p0.sup(&p1));
+        if (0..3).any(|k| ehi[k] < lo[k] || elo[k] > hi[k]) {
+            continue;
+        }
+        let na = triangle_normal(&p0, &p1, &ea.x[third as usize]);
+        bc.grid
+            .query(&elo.add_scalar(-h), &ehi.add_scalar(h), &mut bc.candidates);
+        let mut best: Option<(f64, Contact)> = None;
+        for &k in &bc.candidates {
+            let [i0, i1, i2] = eb.edges[k as usize];
+            let (q0, q1) = (eb.x[i0 as usize], eb.x[i1 as usize]);
+            let nb = triangle_normal(&q0, &q1, &eb.x[i2 as usize]);
+            if na.dot(&nb) < parallel {
+                continue;
+            }
+            let (s, r) = closest_between_segments(&p0, &p1, &q0, &q1);
+            if s <= 0.0 || s >= 1.0 || r <= 0.0 || r >= 1.0 {
+                continue;
+            }
+            let cross = (p1 - p0).cross(&(q1 - q0));
+            let len = cross.norm();
+            if len <= 1e-9 * (p1 - p0).norm() * (q1 - q0).norm() {
+                continue;
+            }
+            let mut n = cross / len;
+            if n.dot(&nb) < 0.0 {
+                n = -n;
+            }
+            // Only edges facing each other: a's surface turned towards b.
+            if n.dot(&na) >= 0.0 || n.dot(&nb) <= 0.0 {
+                continue;
+            }
+            let (pa, pb) = (p0 + (p1 - p0) * s, q0 + (q1 - q0) * r);
+            let gap = (pa - pb).dot(&n);
+            if gap >= h || gap <= -behind {
+                continue;
+            }
+            let va = ea.v[u as usize] * (1.0 - s) + ea.v[w as usize] * s;
+            let vb = eb.v[i0 as usize] * (1.0 - r) + eb.v[i1 as usize] * r;
+            let contact = Contact {
+                a: Feature::Edge {
+                    mesh: ma,
+                    a: u,
+                    b: w,
+                    s,
+                },
+                b: Feature::Edge {
+                    mesh: mb,
+                    a: i0,
+                    b: i1,
+                    s: r,
+                },
+                normal: n,
+                depth: h - gap,
+                relative_velocity: va - vb,
+                share,
+            };
+            if best.as_ref().is_none_or(|(g, _)| gap < *g) {
+                best = Some((gap, contact));
+            }
+        }
+        if let Some((_, c)) = best {
+            bc.contacts.push(c);
+        }
+    }
+}
+
+/// Vertex–face contacts of body `a`'s samples with collider `c` inside `[lo, hi]`.
+fn detect_collider(
+    bc: &mut BodyContact,
+    input: &PassInput,
+    a: usize,
+    c: usize,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+) {
+    let (h, dt) = (input.layer.thickness_m, input.dt);
+    let behind = bc.mesh_of[a].map(|m| bc.meshes[m].cell).unwrap_or(4.0 * h);
+    let col = &mut bc.colliders[c];
+    for i in bc.points[a].clone() {
+        let (x, v) = sample(input.surface, input.nodes, i);
+        if !inside(&x, &lo, &hi) {
+            continue;
+        }
+        let prev = x - v * dt;
+        col.grid.query(
+            &x.inf(&prev).add_scalar(-h),
+            &x.sup(&prev).add_scalar(h),
+            &mut bc.candidates,
+        );
+        let col = &*col;
+        let corners = |t: usize| col.corners(t);
+        let still = |_: usize, _: [f64; 3]| Vector3::zeros();
+        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &still) {
+            bc.contacts.push(Contact {
+                a: Feature::Point(i),
+                b: Feature::Static,
+                normal: hit.normal,
+                depth: hit.depth,
+                relative_velocity: v,
+                share: input.surface.share[i],
+            });
+        }
+    }
+}
+
+/// Add force `f` acting at `feature` to the nodes.
+fn apply(
+    force: &mut [Vector3<f64>],
+    meshes: &[BodyMesh],
+    surface: &SurfacePoints,
+    feature: Feature,
+    f: Vector3<f64>,
+) {
+    let mut vertex = |mesh: &BodyMesh, v: u32, scale: f64| {
+        let (ids, w) = (&mesh.nodes[v as usize], &mesh.weights[v as usize]);
+        for c in 0..8 {
+            force[ids[c] as usize] += f * (w[c] * scale);
+        }
+    };
+    match feature {
+        Feature::Point(i) => {
+            let (ids, w) = (&surface.nodes[i], &surface.weights[i]);
+            for c in 0..8 {
+                force[ids[c] as usize] += f * w[c];
+            }
+        }
+        Feature::Face { mesh, tri, bary } => {
+            let m = &meshes[mesh];
+            for (&v, &w) in m.triangles[tri].iter().zip(&bary) {
+                vertex(m, v, w);
+            }
+        }
+        Feature::Edge { mesh, a, b, s } => {
+            let m = &meshes[mesh];
+            vertex(m, a, 1.0 - s);
+            vertex(m, b, s);
+        }
+        Feature::Static => {}
+    }
+}
+
+/// Forces of the contacts gathered for body `a` and `partner` (a body or a collider), logged
+/// both ways.
+fn respond(
+    bc: &mut BodyContact,
+    log: &mut ContactLog,
+    input: &PassInput,
+    a: usize,
+    partner: ContactPartner,
+    layer: ContactLayer,
+    dt: f64,
+) {
+    let n_bodies = bc.boxes.len();
+    let (b, c) = match partner {
+        ContactPartner::Body(b) => (Some(b), 0),
+        ContactPartner::Collider(c) => (None, c),
+        _ => return,
+    };
+    let pair = a * bc.partner_slots() + b.unwrap_or(n_bodies + c);
+    if bc.contacts.is_empty() {
+        if let Some(s) = bc.hertz_n2.get_mut(pair) {
+            *s = None;
+        }
+        return;
+    }
+    bc.active = true;
+    // Damper mass per unit of share: the pair's reduced mass (a collider is immovable).
+    let mps_a = bc.mass_per_share[a];
+    let mps = match b {
+        Some(b) => {
+            let mps_b = bc.mass_per_share[b];
+            if mps_a + mps_b > 0.0 {
+                mps_a * mps_b / (mps_a + mps_b)
+            } else {
+                0.0
+            }
+        }
+        None => mps_a,
+    };
+    let stiffness_fraction = if b.is_some() {
+        BODY_LAYER_FRACTION
+    } else {
+        1.0
+    };
+    let hertz = if bc.model == ContactModel::Hertz {
+        let n2 = match bc.hertz_n2[pair] {
+            Some(n2) => n2,
+            None => {
+                let n2 = hertz_n2(bc, input, a, b, c);
+                bc.hertz_n2[pair] = Some(n2);
+                n2
+            }
+        };
+        let alpha = bc.contacts.iter().map(|c| c.depth).fold(0.0, f64::max);
+        let total = n2 * alpha.powf(1.5);
+        let weight: f64 = bc
+            .contacts
+            .iter()
+            .map(|c| c.share * c.depth.max(0.0).sqrt())
+            .sum();
+        (weight > 0.0).then_some(total / weight)
+    } else {
+        None
+    };
+    for k in 0..bc.contacts.len() {
+        let c = bc.contacts[k];
+        if c.depth <= 0.0 {
+            continue;
+        }
+        let mass = mps * c.share;
+        let point_layer = match hertz {
+            Some(per_weight) => ContactLayer {
+                stiffness: per_weight * c.share * c.depth.sqrt() / c.depth,
+                damping_ratio: 0.0,
+                ..layer
+            },
+            None => ContactLayer {
+                stiffness: layer.stiffness * c.share * stiffness_fraction,
+                ..layer
+            },
+        };
+        let f = layer_force(
+            &point_layer,
+            layer.friction,
+            c.depth,
+            c.normal,
+            c.relative_velocity,
+            mass,
+            dt,
+        );
+        let approach = -c.relative_velocity.dot(&c.normal);
+        apply(&mut bc.force, &bc.meshes, input.surface, c.a, f);
+        apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
+        log.add(a, partner, f, approach);
+        if let Some(b) = b {
+            log.add(b, ContactPartner::Body(a), -f, approach);
+        }
+    }
+}
+
+/// Local radius of mesh `m` near `at` (eq 3.41 over the edges of triangles with a corner
+/// within `reach`), `None` when flat or nothing is near.
+fn mesh_radius(
+    normals: &mut Vec<Vector3<f64>>,
+    positions: &[Vector3<f64>],
+    triangles: &[[u32; 3]],
+    at: Vector3<f64>,
+    reach: f64,
+) -> Option<f64> {
+    normals.clear();
+    normals.resize(positions.len(), Vector3::zeros());
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let n = (b - a).cross(&(c - a));
+        for &i in t {
+            normals[i as usize] += n;
+        }
+    }
+    let mut edges = Vec::new();
+    for t in triangles {
+        if !t
+            .iter()
+            .any(|&i| (positions[i as usize] - at).norm() <= reach)
+        {
+            continue;
+        }
+        for e in 0..3 {
+            let (i, j) = (t[e] as usize, t[(e + 1) % 3] as usize);
+            edges.push(SurfaceEdge {
+                a: positions[i],
+                b: positions[j],
+                normal_a: normals[i],
+                normal_b: normals[j],
+            });
+        }
+    }
+    match hertz::local_radius(&edges) {
+        Ok(SurfaceRadius::Curved(r)) => Some(r),
+        _ => None,
+    }
+}
+
+/// Hertz stiffness `n2` (eq 3.34, spheres: `A = B = 1/(2R1) + 1/(2R2)`, `q_k(1)`) of body `a`
+/// against body `b` or collider `c`, from the mass-spring model at the deepest contact.
+fn hertz_n2(bc: &mut BodyContact, input: &PassInput, a: usize, b: Option<usize>, c: usize) -> f64 {
+    let deepest = bc.contacts.iter().fold(
+        &bc.contacts[0],
+        |m, k| if k.depth > m.depth { k } else { m },
+    );
+    let at = match deepest.a {
+        Feature::Point(i) => sample(input.surface, input.nodes, i).0,
+        Feature::Edge { mesh, a, b, s } => {
+            let m = &bc.meshes[mesh];
+            m.x[a as usize] * (1.0 - s) + m.x[b as usize] * s
+        }
+        Feature::Face { mesh, tri, bary } => {
+            let [p, q, r] = bc.meshes[mesh].corners(tri);
+            p * bary[0] + q * bary[1] + r * bary[2]
+        }
+        Feature::Static => Vector3::zeros(),
+    };
+    let poisson = hertz::MASS_SPRING_POISSON;
+    let body = |bc: &mut BodyContact, body: usize| -> (f64, f64) {
+        let (lo, hi) = bc.boxes[body];
+        let cap = 0.5 * (hi - lo).max();
+        match bc.mesh_of[body] {
+            Some(m) => {
+                let mesh = &bc.meshes[m];
+                let r = mesh_radius(&mut bc.normals, &mesh.x, &mesh.display, at, 1.5 * mesh.cell);
+                let delta = (1.0 - poisson * poisson) / (std::f64::consts::PI * mesh.young);
+                (r.map_or(cap, |r| r.min(cap)), delta)
+            }
+            None => (cap, 0.0),
+        }
+    };
+    let (r1, d1) = body(bc, a);
+    let (inv_r2, d2) = match b {
+        Some(b) => {
+            let (r2, d2) = body(bc, b);
+            (1.0 / r2, d2)
+        }
+        None => {
+            let reach =
+                bc.mesh_of[a].map_or(8.0 * input.layer.thickness_m, |m| 1.5 * bc.meshes[m].cell);
+            let col = &bc.colliders[c];
+            let r = mesh_radius(&mut bc.normals, &col.positions, &col.triangles, at, reach);
+            (r.map_or(0.0, |r| 1.0 / r), 0.0)
+        }
+    };
+    let coefficient = 0.5 / r1 + 0.5 * inv_r2;
+    let qk = hertz::q_k(1.0).unwrap_or(hertz::Q_K_TABLE[0].1);
+    (4.0 / 3.0) * qk / ((d1 + d2) * (2.0 * coefficient).sqrt())
+}
+
+/// `triangles` with every triangle longer than `spacing` split into a barycentric grid of
+/// `n²` triangles (`n = ⌈longest edge / spacing⌉`; corners keep their vertex, new vertices are
+/// appended), so the reaction on a face lands on the lattice cells under the contact, not on
+/// the corners of a coarse mesh's big triangles. Triangles with an out-of-range index are
+/// dropped.
+fn refine(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    spacing: f64,
+) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let mut points = positions.to_vec();
+    let mut out = Vec::with_capacity(triangles.len());
+    let mut local = Vec::new();
+    for t in triangles {
+        if t.iter().any(|&i| i as usize >= positions.len()) {
+            continue;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+        let n = if spacing > 0.0 && longest.is_finite() {
+            ((longest / spacing).ceil() as usize).clamp(1, 64)
+        } else {
+            1
+        };
+        if n == 1 {
+            out.push(*t);
+            continue;
+        }
+        // Vertex (i, j) at a + (b − a) i/n + (c − a) j/n, i + j ≤ n.
+        local.clear();
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let id = match (i, j) {
+                    (0, 0) => t[0],
+                    (i, 0) if i == n => t[1],
+                    (0, j) if j == n => t[2],
+                    _ => {
+                        let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                        points.push(Point3::from(
+                            a.coords * (1.0 - u - v) + b.coords * u + c.coords * v,
+                        ));
+                        (points.len() - 1) as u32
+                    }
+                };
+                local.push(id);
+            }
+        }
+        for i in 0..n {
+            for j in 0..n - i {
+                let v = |i: usize, j: usize| local[row_start(n, i) + j];
+                out.push([v(i, j), v(i + 1, j), v(i, j + 1)]);
+                if i + j + 1 < n {
+                    out.push([v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)]);
+                }
+            }
+        }
+    }
+    (points, out)
+}
+
+/// Index of vertex `(i, 0)` in a barycentric grid of order `n` stored row by row.
+fn row_start(n: usize, i: usize) -> usize {
+    // Rows 0..i hold n + 1, n, …, n + 2 − i vertices.
+    i * (n + 1) - i * i.saturating_sub(1) / 2
+}
+
+impl World {
+    /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
+    /// counter-clockwise from outside) for contact with other bodies: its vertices are
+    /// embedded in `lattice` (the body's own). The body's contact samples (see
+    /// [`World::add_contact_surface`]) touch the other bodies' triangles and the static
+    /// colliders. Call before stepping.
+    pub fn add_collision_surface(
+        &mut self,
+        body: BodyHandle,
+        lattice: &Lattice,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+    ) {
+        let info = &self.bodies[body.0];
+        let base = info.nodes.start as u32;
+        // Display edges, before refinement (refinement keeps the corners' indices).
+        let mut seen = std::collections::BTreeSet::new();
+        let mut edges = Vec::new();
+        for t in triangles {
+            if t.iter().any(|&i| i as usize >= positions.len()) {
+                continue;
+            }
+            for e in 0..3 {
+                let (i, j, k) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+                if seen.insert((i.min(j), i.max(j))) {
+                    edges.push([i, j, k]);
+                }
+            }
+        }
+        let display: Vec<[u32; 3]> = triangles
+            .iter()
+            .filter(|t| t.iter().all(|&i| (i as usize) < positions.len()))
+            .copied()
+            .collect();
+        let (positions, triangles) = refine(positions, triangles, 0.5 * lattice.cell_size);
+        let positions = &positions[..];
+        let embedding = Embedding::new(lattice, positions);
+        let mut edge_sum = 0.0;
+        for tri in &triangles {
+            for e in 0..3 {
+                let (i, j) = (tri[e], tri[(e + 1) % 3]);
+                edge_sum += (positions[i as usize] - positions[j as usize]).norm();
+            }
+        }
+        let springs: Vec<hertz::SpringEdge> = info
+            .springs
+            .clone()
+            .filter(|&s| self.springs.rest_length[s] > 0.0 && self.springs.stiffness[s] > 0.0)
+            .map(|s| hertz::SpringEdge {
+                length_m: self.springs.rest_length[s],
+                k_n_per_m: self.springs.stiffness[s],
+            })
+            .collect();
+        let young =
+            hertz::young_from_springs(&springs, hertz::lattice_spring_area_m2(lattice.cell_size))
+                .unwrap_or(f64::INFINITY);
+        let n = positions.len();
+        let mesh = BodyMesh {
+            body: body.0,
+            nodes: embedding
+                .nodes
+                .iter()
+                .map(|c| c.map(|i| i + base))
+                .collect(),
+            weights: embedding.weights,
+            mean_edge: if triangles.is_empty() {
+                lattice.cell_size
+            } else {
+                edge_sum / (3 * triangles.len()) as f64
+            },
+            triangles,
+            edges,
+            display,
+            cell: lattice.cell_size,
+            young,
+            stamp: 0,
+            x: vec![Vector3::zeros(); n],
+            v: vec![Vector3::zeros(); n],
+        };
+        let bc = &mut self.body_contact;
+        bc.meshes.retain(|m| m.body != body.0);
+        bc.meshes.push(mesh);
+        bc.built_for = (usize::MAX, 0);
+    }
+
+    /// Add a static collider; returns its index (the log's [`ContactPartner::Collider`]).
+    pub fn add_collider(&mut self, collider: StaticCollider) -> usize {
+        let bc = &mut self.body_contact;
+        bc.colliders.push(collider);
+        bc.built_for = (usize::MAX, 0);
+        bc.colliders.len() - 1
+    }
+
+    /// The static colliders.
+    pub fn colliders(&self) -> &[StaticCollider] {
+        &self.body_contact.colliders
+    }
+
+    /// How bodies push on each other and on colliders (default: the elastic layer).
+    pub fn set_contact_model(&mut self, model: ContactModel) {
+        self.body_contact.model = model;
+    }
+}
