@@ -8,6 +8,7 @@
 
 pub mod bake;
 pub mod collide;
+pub mod cage;
 pub mod display;
 pub mod lattice;
 pub mod material;

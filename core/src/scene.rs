@@ -28,6 +28,9 @@ pub struct SceneFile {
     /// Pin and trajectory constraints (Terasawa §3.1).
     #[serde(default)]
     pub constraint: Vec<ConstraintSection>,
+    /// Articulated bodies: shared joint nodes (see `crate::solver::joints`).
+    #[serde(default)]
+    pub joint: Vec<JointSection>,
     /// Events and their procedures (physics §11; see `crate::events`, `crate::procedures`).
     #[serde(default)]
     pub event: Vec<crate::events::EventSpec>,
@@ -305,11 +308,12 @@ pub struct BodySection {
     /// diagonals): the single-face-diagonal lattice of Miyazaki's Table 1 is weak in shear and
     /// folds cells even on an ordinary drop.
     #[serde(default = "default_springs")]
-    pub springs: crate::lattice::SpringLayout,
+    pub springs: SpringsSpec,
     /// A name for constraints to refer to (default: the mesh names).
     #[serde(default)]
     pub name: Option<String>,
-    /// `"flexible"` (default) or `"rigid"` (keeps its shape exactly: a floating frame).
+    /// `"flexible"` (default), `"rigid"` (keeps its shape exactly: a floating frame) or
+    /// `"particle"` (one point mass: translation only).
     #[serde(default)]
     pub kind: BodyKind,
     /// Keep the lattice's volume (Terasawa §3.2) at `volume_scale` × its rest volume.
@@ -320,6 +324,19 @@ pub struct BodySection {
     /// Stiffness scale along x, y, z (anisotropy), e.g. `[1, 4, 1]` for a stiff column.
     #[serde(default = "default_stiffness_scale")]
     pub stiffness_scale: [f64; 3],
+    /// The analysis model: `lattice` (default), `box`, `octahedron`, `icosahedron`, `plane`,
+    /// `decimated`, `explicit` (see `crate::cage`).
+    #[serde(default)]
+    pub model: ModelKind,
+    /// Target node count of `model = "decimated"` (default 32).
+    #[serde(default)]
+    pub cage_vertices: Option<u32>,
+    /// Nodes of `model = "explicit"`, metres, world frame (after offsets).
+    #[serde(default, deserialize_with = "de_nodes")]
+    pub nodes: Option<Vec<[f64; 3]>>,
+    /// Per-region mass and stiffness scales.
+    #[serde(default)]
+    pub region: Vec<RegionSection>,
     /// Exaggeration: multiplies the stiffness of this body's elastic contact layer.
     #[serde(default = "default_contact_scale")]
     pub contact_scale: f64,
@@ -351,6 +368,10 @@ impl BodySection {
             preserve_volume: false,
             volume_scale: default_volume_scale(),
             stiffness_scale: default_stiffness_scale(),
+            model: ModelKind::default(),
+            cage_vertices: None,
+            nodes: None,
+            region: Vec::new(),
             contact_scale: default_contact_scale(),
             bounce_tolerance: default_bounce_tolerance(),
         }
@@ -370,6 +391,8 @@ pub enum BodyKind {
     #[default]
     Flexible,
     Rigid,
+    /// One point mass: translation only (see `crate::solver::rigid`).
+    Particle,
 }
 
 /// `[[constraint]]`: lattice nodes of a body follow keyframes (a pin without keys).
@@ -417,11 +440,147 @@ pub enum PathInterpolation {
     CatmullRom,
 }
 
-fn default_springs() -> crate::lattice::SpringLayout {
-    crate::lattice::SpringLayout::Both
+fn default_springs() -> SpringsSpec {
+    SpringsSpec::Layout(crate::lattice::SpringLayout::Both)
 }
 
 pub const DEFAULT_CELLS: u32 = 10;
+
+/// `[body] model`: the analysis model the mesh is embedded in (see `crate::cage`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelKind {
+    /// The auto-fitted cubic lattice (trilinear embedding).
+    #[default]
+    Lattice,
+    Box,
+    Octahedron,
+    Icosahedron,
+    /// A one-cell slab across the mesh's two widest axes (`cells` along the widest).
+    Plane,
+    /// The mesh's vertices clustered to about `cage_vertices` nodes.
+    Decimated,
+    /// `nodes` and `springs` listed in the scene.
+    Explicit,
+}
+
+/// `[body] springs`: a lattice layout name, or for `model = "explicit"` the node pairs
+/// `[[i, j], ...]`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum SpringsSpec {
+    Layout(crate::lattice::SpringLayout),
+    Pairs(Vec<[usize; 2]>),
+}
+
+impl SpringsSpec {
+    /// The lattice layout (`both` when explicit pairs were given).
+    pub fn layout(&self) -> crate::lattice::SpringLayout {
+        match self {
+            SpringsSpec::Layout(l) => *l,
+            SpringsSpec::Pairs(_) => crate::lattice::SpringLayout::Both,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SpringsSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = SpringsSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(
+                    "springs: \"face_diagonals\", \"body_diagonals\", \"both\", or a list of \
+                     [i, j] node pairs",
+                )
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<SpringsSpec, E> {
+                crate::lattice::SpringLayout::deserialize(de::value::StrDeserializer::<E>::new(s))
+                    .map(SpringsSpec::Layout)
+                    .map_err(|_| {
+                        E::custom(format!(
+                            "springs: unknown layout \"{s}\"; expected \"face_diagonals\", \
+                             \"body_diagonals\", \"both\", or a list of [i, j] node pairs"
+                        ))
+                    })
+            }
+            fn visit_seq<A: de::SeqAccess<'de>>(self, mut seq: A) -> Result<SpringsSpec, A::Error> {
+                let mut pairs = Vec::new();
+                while let Some(v) = seq.next_element::<toml::Value>()? {
+                    let k = pairs.len();
+                    let bad = || {
+                        de::Error::custom(format!(
+                            "springs[{k}]: expected a pair of node indices [i, j] (non-negative \
+                             integers), got {v}"
+                        ))
+                    };
+                    let arr = v.as_array().ok_or_else(bad)?;
+                    if arr.len() != 2 {
+                        return Err(bad());
+                    }
+                    let idx = |x: &toml::Value| {
+                        x.as_integer()
+                            .filter(|i| *i >= 0)
+                            .map(|i| i as usize)
+                            .ok_or_else(bad)
+                    };
+                    pairs.push([idx(&arr[0])?, idx(&arr[1])?]);
+                }
+                Ok(SpringsSpec::Pairs(pairs))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `nodes = [[x, y, z], ...]` with errors naming the entry.
+fn de_nodes<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<[f64; 3]>>, D::Error> {
+    let values = Vec::<toml::Value>::deserialize(d)?;
+    let mut nodes = Vec::with_capacity(values.len());
+    for (i, v) in values.iter().enumerate() {
+        let bad = || {
+            de::Error::custom(format!(
+                "nodes[{i}]: expected three coordinates [x, y, z] in metres, got {v}"
+            ))
+        };
+        let arr = v.as_array().filter(|a| a.len() == 3).ok_or_else(bad)?;
+        let mut p = [0.0; 3];
+        for (c, x) in p.iter_mut().zip(arr) {
+            *c = x
+                .as_float()
+                .or_else(|| x.as_integer().map(|n| n as f64))
+                .ok_or_else(bad)?;
+        }
+        nodes.push(p);
+    }
+    Ok(Some(nodes))
+}
+
+/// `[[body.region]]`: a box (metres, world frame, after offsets) with its own mass and
+/// stiffness scales (locality, e.g. a heavy bottom).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSection {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    #[serde(default = "default_one")]
+    pub mass_scale: f64,
+    #[serde(default = "default_one")]
+    pub stiffness_scale: f64,
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+/// `[[joint]]`: two flexible bodies share the node of each nearest `at` (metres, world frame).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSection {
+    /// The two bodies: `[[body]] name`s or mesh names.
+    pub bodies: Vec<String>,
+    pub at: [f64; 3],
+}
 
 /// A material preset name or an inline table of values.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -12,6 +12,7 @@
 
 pub mod events;
 mod frame;
+mod models;
 mod report;
 mod simulate;
 pub mod watch;

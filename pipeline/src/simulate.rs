@@ -5,9 +5,7 @@ use crate::report::{BodyReport, Seconds};
 use crate::{BakeHooks, LoadedScene, PipelineError};
 use springbake_core::bake::{BakedLattice, BakedMesh, BakedScene};
 use springbake_core::display::{ImportedScene, SourceDocument};
-use springbake_core::lattice::{
-    fit_lattice, surface_samples, Embedding, FitSettings, Lattice, Resolution,
-};
+use springbake_core::lattice::{Embedding, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
 use springbake_core::plugin::{ImportSettings, Registry};
@@ -211,15 +209,18 @@ pub fn prepare(
         };
         let settings = FitSettings {
             resolution,
-            layout: section.springs,
+            layout: section.springs.layout(),
             up_index: frame.up.index(),
             ..FitSettings::default()
         };
+        // The lattice or cage (`[body] model`, see `models`).
         let lattice =
-            fit_lattice(&p.points, &p.triangles, &settings).map_err(|e| PipelineError::Body {
-                body: p.body,
-                source_path: loaded.source_path(section),
-                message: format!("mesh \"{}\": {e}", p.name),
+            crate::models::fit(&p.points, &p.triangles, section, &settings).map_err(|e| {
+                PipelineError::Body {
+                    body: p.body,
+                    source_path: loaded.source_path(section),
+                    message: format!("mesh \"{}\": {e}", p.name),
+                }
             })?;
         let material = section
             .material
@@ -237,7 +238,7 @@ pub fn prepare(
     let (finest, stiffest) = fitted
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(c, k), (l, m)| {
-            (c.min(l.cell_size), k.max(m.spring_constant(l.cell_size)))
+            (c.min(l.spacing()), k.max(m.spring_constant(l.spacing())))
         });
     let reference = fitted
         .iter()
@@ -334,12 +335,21 @@ pub fn prepare(
     let mut body_names: Vec<(Option<String>, String, BodyHandle)> = Vec::new();
     for (p, (lattice, material)) in pending.into_iter().zip(fitted) {
         let section = &scene.body[p.body];
-        let velocity = Vector3::from(section.velocity);
-        let handle = world.add_lattice_body(p.name.clone(), &lattice, &material, velocity);
-        // The mesh, not its lattice, touches the floor, walls and manipulators.
-        let (samples, areas) = surface_samples(&p.points, &p.triangles, 0.5 * lattice.cell_size);
-        world.add_contact_surface(handle, &lattice, &samples, &areas);
-        let embedding = Embedding::new(&lattice, &p.points);
+        // Model, regions, contact surface, embedding, particle kind (see `models`).
+        let (handle, embedding, lattice) = crate::models::add_body(
+            &mut world,
+            lattice,
+            &material,
+            &p.name,
+            section,
+            &p.points,
+            &p.triangles,
+        )
+        .map_err(|message| PipelineError::Body {
+            body: p.body,
+            source_path: loaded.source_path(section),
+            message: format!("mesh \"{}\": {message}", p.name),
+        })?;
         let source_path = loaded.source_path(section);
         let body_error = |e: springbake_core::solver::ConstraintError| PipelineError::Body {
             body: p.body,
@@ -372,6 +382,7 @@ pub fn prepare(
         });
     }
     add_constraints(scene, &mut world, &body_names)?;
+    crate::models::add_joints(scene, &mut world, &body_names)?;
     let events = crate::events::EventDriver::wire(scene, registry, &mut world, &bodies).map_err(
         |message| match &loaded.scene_path {
             Some(path) => PipelineError::Scene {
@@ -483,7 +494,9 @@ impl Prepared {
                 islands: b.lattice.island_count,
                 cell_size: b.lattice.cell_size,
                 material: b.material.name.clone(),
-                mass_kg: b.material.density_kg_m3 * b.lattice.volume(),
+                mass_kg: self.world.nodes.mass[self.world.bodies[b.handle.0].nodes.clone()]
+                    .iter()
+                    .sum(),
             })
             .collect()
     }

@@ -6,6 +6,12 @@
 //! orientation quaternion by the angular velocity `ω = R I⁻¹ Rᵀ L`) and the nodes are placed
 //! at `x_i = c + R r_i` with `v_i = v_c + ω × R r_i`, so distances between nodes are exact to
 //! rounding. Gyroscopic motion comes from keeping L (not ω) as the state.
+//!
+//! A **particle** ([`RigidBody::particle`], `[body] kind = "particle"`) is the same frame with
+//! the rotation locked: only the impulse is taken (the angular impulse is dropped), the nodes
+//! keep their rest offsets from the centre, and gravity is integrated exactly —
+//! `c += (v_{n+1} − ½ g Δt) Δt`, which is `x0 + v0 t − ½ g t²` to rounding in free fall under
+//! either integrator — while the other forces (contacts, wind) keep the symplectic update.
 
 use super::NodeState;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -25,6 +31,10 @@ pub struct RigidBody {
     pub orientation: UnitQuaternion<f64>,
     /// Angular momentum about the centre of mass, world frame.
     pub angular_momentum: Vector3<f64>,
+    /// A particle: translation only (module docs).
+    pub translation_only: bool,
+    /// Gravity integrated exactly for a particle (zero for a rigid body).
+    pub exact_gravity: Vector3<f64>,
 }
 
 impl RigidBody {
@@ -68,6 +78,44 @@ impl RigidBody {
             velocity,
             orientation: UnitQuaternion::identity(),
             angular_momentum,
+            translation_only: false,
+            exact_gravity: Vector3::zeros(),
+        })
+    }
+
+    /// The nodes `range` as one point mass moving with their mean momentum, no rotation;
+    /// `None` when they have no mass or a pinned node.
+    pub fn particle(
+        body: usize,
+        nodes: &NodeState,
+        range: Range<usize>,
+        gravity: Vector3<f64>,
+    ) -> Option<RigidBody> {
+        let mass: f64 = nodes.mass[range.clone()].iter().sum();
+        if range.is_empty() || mass <= 0.0 || nodes.inv_mass[range.clone()].contains(&0.0) {
+            return None;
+        }
+        let centre = range
+            .clone()
+            .map(|i| nodes.position[i] * nodes.mass[i])
+            .sum::<Vector3<f64>>()
+            / mass;
+        let velocity = range
+            .clone()
+            .map(|i| nodes.velocity[i] * nodes.mass[i])
+            .sum::<Vector3<f64>>()
+            / mass;
+        Some(RigidBody {
+            body,
+            local: range.map(|i| nodes.position[i] - centre).collect(),
+            mass,
+            inverse_inertia: Matrix3::zeros(),
+            centre,
+            velocity,
+            orientation: UnitQuaternion::identity(),
+            angular_momentum: Vector3::zeros(),
+            translation_only: true,
+            exact_gravity: gravity,
         })
     }
 
@@ -94,6 +142,14 @@ impl RigidBody {
             angular += (x0 - self.centre).cross(&j_i);
         }
         self.velocity += impulse / self.mass;
+        if self.translation_only {
+            self.centre += (self.velocity - 0.5 * self.exact_gravity * dt) * dt;
+            for (j, i) in range.enumerate() {
+                nodes.position[i] = self.centre + self.local[j];
+                nodes.velocity[i] = self.velocity;
+            }
+            return;
+        }
         self.angular_momentum += angular;
         self.centre += self.velocity * dt;
         let omega = self.angular_velocity();

@@ -128,6 +128,9 @@ pub struct World {
     /// Bodies stepped as rigid bodies (see [`super::rigid`]); path constraints and volume
     /// preservation do not act on their nodes.
     pub rigid: Vec<RigidBody>,
+    /// Shared joint nodes of articulated bodies (see [`super::joints`]), synced after each
+    /// step.
+    pub joints: Vec<super::joints::SharedNode>,
     /// Newmark-β state (the previous step's accelerations), once a Newmark step ran.
     pub(crate) newmark: Option<NewmarkState>,
     /// What each body touched during the last frame (see [`super::contact_log`]).
@@ -288,6 +291,7 @@ impl World {
             constraints: Vec::new(),
             volume: Vec::new(),
             rigid: Vec::new(),
+            joints: Vec::new(),
             newmark: None,
             contact_log: ContactLog::default(),
             body_contact: BodyContact::default(),
@@ -435,6 +439,12 @@ impl World {
             .iter()
             .map(|&p| Point3::from(p))
             .collect()
+    }
+
+    /// Drop the derived step data (adjacency, colouring, step bounds) after changing nodes or
+    /// springs from outside this module (joints, regions, cage contact surfaces).
+    pub fn invalidate_prepared(&mut self) {
+        self.prepared = None;
     }
 
     fn prepare(&mut self) -> &mut Prepared {
@@ -678,6 +688,7 @@ impl World {
             let drift = 1.0 - now / previous;
             stats.volume_error = stats.volume_error.max(drift.abs());
         }
+        super::joints::sync(&self.joints, &mut self.nodes);
         stats
     }
 

@@ -1,0 +1,195 @@
+//! The analysis model of each body (`[body] model`, see `springbake_core::cage`): fit the
+//! lattice or build the cage, add it to the world with its per-region scales, display-surface
+//! contact and embedding, `kind = "particle"`, and the scene's `[[joint]]`s.
+
+use crate::PipelineError;
+use springbake_core::cage::{self, Cage, Primitive};
+use springbake_core::lattice::{fit_lattice, surface_samples, Embedding, FitSettings, Lattice};
+use springbake_core::material::Material;
+use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::scene::{BodyKind, BodySection, ModelKind, SceneFile, SpringsSpec};
+use springbake_core::solver::joints::join_bodies_at;
+use springbake_core::solver::regions::{apply_region, Region};
+use springbake_core::solver::{BodyHandle, RigidBody, World};
+
+/// Default node target of `model = "decimated"`.
+pub const DEFAULT_CAGE_VERTICES: u32 = 32;
+
+/// A body's analysis model before it joins the world.
+#[derive(Debug, Clone)]
+pub enum Analysis {
+    Lattice(Lattice),
+    Cage(Cage),
+}
+
+impl Analysis {
+    /// Cell size, or the cage's mean spring length, metres.
+    pub fn spacing(&self) -> f64 {
+        match self {
+            Analysis::Lattice(l) => l.cell_size,
+            Analysis::Cage(c) => c.spacing(),
+        }
+    }
+}
+
+/// Fit the lattice or build the cage of one mesh (`points` in simulation metres).
+pub fn fit(
+    points: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    section: &BodySection,
+    lattice_settings: &FitSettings,
+) -> Result<Analysis, String> {
+    let cage_err = |e: cage::CageError| e.to_string();
+    if section.model != ModelKind::Explicit {
+        for (field, given) in [
+            ("nodes", section.nodes.is_some()),
+            ("springs", matches!(section.springs, SpringsSpec::Pairs(_))),
+        ] {
+            if given {
+                return Err(format!("{field}: only for model = \"explicit\""));
+            }
+        }
+    }
+    if section.cage_vertices.is_some() && section.model != ModelKind::Decimated {
+        return Err("cage_vertices: only for model = \"decimated\"".into());
+    }
+    Ok(match section.model {
+        ModelKind::Lattice => Analysis::Lattice(
+            fit_lattice(points, triangles, lattice_settings).map_err(|e| e.to_string())?,
+        ),
+        ModelKind::Box => {
+            Analysis::Cage(cage::primitive(Primitive::Box, points).map_err(cage_err)?)
+        }
+        ModelKind::Octahedron => {
+            Analysis::Cage(cage::primitive(Primitive::Octahedron, points).map_err(cage_err)?)
+        }
+        ModelKind::Icosahedron => {
+            Analysis::Cage(cage::primitive(Primitive::Icosahedron, points).map_err(cage_err)?)
+        }
+        ModelKind::Plane => Analysis::Cage(
+            cage::plane(
+                points,
+                section
+                    .cells
+                    .unwrap_or(springbake_core::scene::DEFAULT_CELLS),
+            )
+            .map_err(cage_err)?,
+        ),
+        ModelKind::Decimated => Analysis::Cage(
+            cage::decimated(
+                points,
+                triangles,
+                section.cage_vertices.unwrap_or(DEFAULT_CAGE_VERTICES),
+            )
+            .map_err(cage_err)?,
+        ),
+        ModelKind::Explicit => {
+            let nodes: Vec<Vector3<f64>> = section
+                .nodes
+                .as_ref()
+                .ok_or("nodes: model = \"explicit\" needs nodes = [[x, y, z], ...] (metres)")?
+                .iter()
+                .map(|p| Vector3::from(*p))
+                .collect();
+            let SpringsSpec::Pairs(springs) = &section.springs else {
+                return Err(
+                    "springs: model = \"explicit\" needs springs = [[i, j], ...] (node pairs)"
+                        .into(),
+                );
+            };
+            Analysis::Cage(cage::explicit(&nodes, springs).map_err(cage_err)?)
+        }
+    })
+}
+
+/// Add one body: the model's nodes and springs, its `[[body.region]]` scales, the display
+/// surface as its contact surface, `kind = "particle"`. Returns the handle, the mesh's
+/// embedding and the lattice (a cell-less view of a cage) the host keeps for reports, the
+/// viewer and the skin cache.
+pub fn add_body(
+    world: &mut World,
+    analysis: Analysis,
+    material: &Material,
+    name: &str,
+    section: &BodySection,
+    points: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+) -> Result<(BodyHandle, Embedding, Lattice), String> {
+    let velocity = Vector3::from(section.velocity);
+    let handle = match &analysis {
+        Analysis::Lattice(l) => world.add_lattice_body(name, l, material, velocity),
+        Analysis::Cage(c) => {
+            // Mass from the mesh's enclosed volume when it is closed (module docs of `cage`).
+            let volume = cage::mesh_volume(points, triangles);
+            let closed = volume > 1e-3 * c.volume();
+            c.add_to_world(world, name, material, closed.then_some(volume), velocity)
+        }
+    };
+    for (i, r) in section.region.iter().enumerate() {
+        let region = Region {
+            min: Vector3::from(r.min),
+            max: Vector3::from(r.max),
+            mass_scale: r.mass_scale,
+            stiffness_scale: r.stiffness_scale,
+        };
+        apply_region(world, handle, &region).map_err(|e| format!("region[{i}]: {e}"))?;
+    }
+    // The mesh, not its model, touches the floor, walls and manipulators.
+    let (samples, areas) = surface_samples(points, triangles, 0.5 * analysis.spacing());
+    let (embedding, lattice) = match analysis {
+        Analysis::Lattice(l) => {
+            world.add_contact_surface(handle, &l, &samples, &areas);
+            (Embedding::new(&l, points), l)
+        }
+        Analysis::Cage(c) => {
+            c.add_contact_surface(world, handle, &samples, &areas);
+            (c.embed(points), c.lattice_view())
+        }
+    };
+    if section.kind == BodyKind::Particle {
+        let range = world.bodies[handle.0].nodes.clone();
+        let particle = RigidBody::particle(handle.0, &world.nodes, range, world.settings.gravity)
+            .ok_or("kind = \"particle\": the body has no mass")?;
+        world.rigid.push(particle);
+    }
+    Ok((handle, embedding, lattice))
+}
+
+/// Bind the scene's `[[joint]]`s (after every body is in the world).
+pub fn add_joints(
+    scene: &SceneFile,
+    world: &mut World,
+    bodies: &[(Option<String>, String, BodyHandle)],
+) -> Result<(), PipelineError> {
+    for (i, j) in scene.joint.iter().enumerate() {
+        let err = |message: String| PipelineError::Usage(format!("joint[{i}]: {message}"));
+        if j.bodies.len() != 2 {
+            return Err(err(format!(
+                "bodies: expected two body names, got {}",
+                j.bodies.len()
+            )));
+        }
+        let find = |name: &str| {
+            bodies
+                .iter()
+                .find(|(section, mesh, _)| section.as_deref() == Some(name) || mesh == name)
+                .map(|b| b.2)
+                .ok_or_else(|| {
+                    let names: Vec<&str> = bodies
+                        .iter()
+                        .map(|b| b.0.as_deref().unwrap_or(b.1.as_str()))
+                        .collect();
+                    err(format!(
+                        "bodies: no body named \"{name}\"; bodies: {}",
+                        names.join(", ")
+                    ))
+                })
+        };
+        let (a, b) = (find(&j.bodies[0])?, find(&j.bodies[1])?);
+        if !j.at.iter().all(|x| x.is_finite()) {
+            return Err(err("at: coordinates must be finite".into()));
+        }
+        join_bodies_at(world, a, b, Vector3::from(j.at)).map_err(|e| err(e.to_string()))?;
+    }
+    Ok(())
+}
