@@ -5,8 +5,11 @@
 #![allow(clippy::unwrap_used)]
 
 use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::scene::CacheSpec;
 use springbake_core::shapes::{box_mesh, uv_sphere};
-use springbake_pipeline::{default_registry, load_scene, prepare, BakeHooks, Prepared, Seconds};
+use springbake_pipeline::{
+    default_registry, export, load_scene, prepare, write_outputs, BakeHooks, Prepared, Seconds,
+};
 use std::path::Path;
 
 fn write_obj(path: &Path, points: &[Point3<f64>], triangles: &[[u32; 3]]) {
@@ -108,6 +111,18 @@ fn a_mesh_baked_in_an_icosahedron_moves_with_its_cage() {
         cage_bottom < -0.01,
         "the cage stands off the mesh: {cage_bottom}"
     );
+    // The skin cache (cage nodes as joints, 4 of 8 weights used) is valid glTF.
+    let out = dir.path().join("out.glb");
+    let files = export(
+        &default_registry(),
+        &prepared,
+        &baked,
+        &out,
+        CacheSpec::Skin,
+    )
+    .unwrap();
+    write_outputs(&files).unwrap();
+    springbake_testkit::assert_gltf_valid(&out);
 }
 
 #[test]
