@@ -4,10 +4,11 @@
 //! After each output frame the [`EventDriver`] turns the solver's contact log
 //! ([`World::frame_contacts`]) into an [`Observation`]: a *collision* for every (body, partner)
 //! pair that began touching during the frame (it was not touching at the end of the previous
-//! one), with the log's first-touch approach speed and peak force; a *rebound* for every pair
-//! whose contact ended during the frame, with the body's centre-of-mass speed away from the
-//! partner (along the plane normal for the floor and walls, along the line between the centres
-//! for another body or a manipulator; the centre-of-mass speed for a static collider).
+//! one), with the log's first-touch approach speed and peak force; a *rebound* for every body
+//! whose contact with a static surface (the floor, a wall, a collider) ended during the frame,
+//! with its centre-of-mass speed away from it (along the plane normal for the floor and walls;
+//! the centre-of-mass speed for a collider, whose normal the log does not give). Parting from
+//! another body or a manipulator is not a rebound.
 //! Partners are named by the other body's event name, `"floor"`, `"wall"`, `"manipulator"` or
 //! the collider's name. The event queue answers with firings, applied in their order by
 //! [`springbake_core::procedures`]; every firing is logged for the report's `events` array.
@@ -331,7 +332,8 @@ impl EventDriver {
         }
     }
 
-    /// Speed of world body `body` away from `partner` now, and the partner's plane if it is one.
+    /// Speed of world body `body` away from static surface `partner` now, and the partner's
+    /// plane if it is one.
     fn rebound(world: &World, body: usize, partner: ContactPartner) -> (f64, Option<Plane>) {
         let h = springbake_core::solver::BodyHandle(body);
         let (_, c, v) = centre_of_mass(world, h);
@@ -355,34 +357,8 @@ impl EventDriver {
                     .copied();
                 (nearest.map_or(v.norm(), |p| along(p.normal)), nearest)
             }
-            ContactPartner::Body(j) => {
-                let (_, cj, vj) = centre_of_mass(world, springbake_core::solver::BodyHandle(j));
-                let d = c - cj;
-                let speed = if d.norm() > 0.0 {
-                    (v - vj).dot(&d.normalize())
-                } else {
-                    (v - vj).norm()
-                };
-                (speed, None)
-            }
-            ContactPartner::Manipulator(k) => {
-                let tracks = &world.manipulators;
-                let cap = if k < tracks.len() {
-                    Some(tracks[k].capsule_at(world.time))
-                } else {
-                    world.live_capsules.get(k - tracks.len()).copied()
-                };
-                let speed = cap.map_or(v.norm(), |cap| {
-                    let d = c - cap.closest_point(&c);
-                    if d.norm() > 0.0 {
-                        (v - cap.velocity).dot(&d.normalize())
-                    } else {
-                        (v - cap.velocity).norm()
-                    }
-                });
-                (speed, None)
-            }
-            ContactPartner::Collider(_) => (v.norm(), None),
+            // Colliders (and, unused, bodies and manipulators): the centre-of-mass speed.
+            _ => (v.norm(), None),
         }
     }
 
@@ -414,7 +390,13 @@ impl EventDriver {
             if !self.touching.contains(&key) {
                 obs = obs.with_collision(&self.names[b], with, r.impact_speed, r.peak_force);
             }
-            if !r.touching_at_end {
+            // A rebound is leaving a static surface (the bounce feature's, Terasawa §4.1):
+            // parting from another body or a manipulator is not one.
+            let static_surface = matches!(
+                r.partner,
+                ContactPartner::Floor | ContactPartner::Wall | ContactPartner::Collider(_)
+            );
+            if !r.touching_at_end && static_surface {
                 let (speed, plane) = Self::rebound(world, r.body, r.partner);
                 obs = obs.with_rebound(&self.names[b], speed);
                 rebounds.push((b, speed, plane));

@@ -1,0 +1,65 @@
+"""Open a baked glTF in Blender and report what is in it (the bowling example's check).
+
+Usage: python bowling_blender.py FILE.glb
+
+Imports FILE into an empty scene and prints one JSON line last:
+{mesh_objects: n, names: [...], frame_start, frame_end (from the imported actions),
+ objects: {name: {vertices, max_move: largest vertex displacement between the first and last
+ animated frame, max_distance_change: largest change of a distance between two vertices (0 for
+ a rigid motion)}}}, Blender world units.
+"""
+
+import json
+import sys
+
+import bpy
+
+
+def world_vertices(ob):
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(depsgraph)
+    mesh = ev.to_mesh()
+    pts = [ev.matrix_world @ v.co for v in mesh.vertices]
+    ev.to_mesh_clear()
+    return pts
+
+
+def main():
+    path = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=path)
+    scene = bpy.context.scene
+    meshes = sorted((o for o in scene.objects if o.type == "MESH"), key=lambda o: o.name)
+    ranges = [a.frame_range for a in bpy.data.actions]
+    if not ranges:
+        print(json.dumps({"error": "no animation imported"}))
+        return
+    start = int(round(min(r[0] for r in ranges)))
+    end = int(round(max(r[1] for r in ranges)))
+    scene.frame_set(start)
+    first = {o.name: world_vertices(o) for o in meshes}
+    scene.frame_set(end)
+    last = {o.name: world_vertices(o) for o in meshes}
+    objects = {}
+    for o in meshes:
+        a, b = first[o.name], last[o.name]
+        n = len(a)
+        # A rigid motion keeps every distance between vertices; a deformation changes some.
+        pairs = [(i, (i + 1) % n) for i in range(n)] + [(i, (i + n // 2) % n) for i in range(n)]
+        objects[o.name] = {
+            "vertices": n,
+            "max_move": max(((p - q).length for p, q in zip(a, b)), default=0.0),
+            "max_distance_change": max(
+                (abs((a[i] - a[j]).length - (b[i] - b[j]).length) for i, j in pairs), default=0.0
+            ),
+        }
+    print(json.dumps({
+        "mesh_objects": len(meshes),
+        "names": [o.name for o in meshes],
+        "frame_start": start,
+        "frame_end": end,
+        "objects": objects,
+    }))
+
+
+main()
