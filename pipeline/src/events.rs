@@ -194,7 +194,8 @@ impl EventDriver {
             let unique: BTreeSet<&str> = names.iter().map(String::as_str).collect();
             unique.into_iter().collect::<Vec<_>>().join(", ")
         };
-        let collider_names: Vec<String> = Vec::new();
+        let collider_names: Vec<String> =
+            world.colliders().iter().map(|c| c.name.clone()).collect();
         for (i, e) in scene.event.iter().enumerate() {
             let at = format!("event[{i}] \"{}\"", e.name);
             if !names.contains(&e.body) {
@@ -211,8 +212,9 @@ impl EventDriver {
                     && !collider_names.contains(w)
                 {
                     return Err(format!(
-                        "{at}.on.collision: nothing is named \"{w}\"; bodies: {}; surfaces: floor, wall, manipulator",
-                        listed()
+                        "{at}.on.collision: nothing is named \"{w}\"; bodies: {}; surfaces: floor, wall, manipulator{}",
+                        listed(),
+                        collider_names.iter().map(|c| format!(", {c}")).collect::<String>()
                     ));
                 }
             }

@@ -350,3 +350,29 @@ fn bad_events_are_errors_naming_the_event_and_field() {
         "{msg}"
     );
 }
+
+#[test]
+fn events_fire_and_act_the_same_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = format!(
+        "{}offset = [0.0, 0.3, 0.0]\n[[event]]\nname = \"land\"\nbody = \"cube\"\n\
+         on = {{ collision = \"floor\" }}\nloop = true\nprocedure = {{ apply_impulse = [0.5, 0.0, 0.0] }}\n\
+         [[event]]\nname = \"spin\"\nbody = \"cube\"\non = {{ convergence = 5.0 }}\n\
+         procedure = {{ switch_feature = \"roll\" }}\n",
+        head(30, 9.81, true)
+    );
+    let runs: Vec<Run> = [1, 2]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap();
+            pool.install(|| run(dir.path(), &scene))
+        })
+        .collect();
+    assert!(!runs[0].events.is_empty());
+    assert_eq!(runs[0].events, runs[1].events);
+    assert_eq!(runs[0].centroid, runs[1].centroid);
+    assert_eq!(runs[0].prepared.world.nodes, runs[1].prepared.world.nodes);
+}
