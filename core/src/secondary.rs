@@ -137,3 +137,67 @@ impl Attachment {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::WorldSettings;
+    use nalgebra::Rotation3;
+
+    /// Eq 4.1 carries the child with the parent: for a rotation, uniform scale and translation
+    /// of the parent the whole child moves by the same map; for any affine motion the three
+    /// anchors land exactly on the parent points.
+    #[test]
+    fn the_child_follows_the_motion_of_its_parent() {
+        let mut world = World::new(WorldSettings::default());
+        let cube: Vec<Vector3<f64>> = (0..8)
+            .map(|c| Vector3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64))
+            .collect();
+        let parent = world.add_body("parent", &cube, &[1.0; 8], &[], Vector3::zeros());
+        let child_points: Vec<Vector3<f64>> = [
+            [0.2, 1.2, 0.3],
+            [0.8, 1.2, 0.3],
+            [0.5, 1.2, 0.8],
+            [0.5, 1.9, 0.5],
+        ]
+        .iter()
+        .map(|p| Vector3::from(*p))
+        .collect();
+        let child = world.add_body("child", &child_points, &[1.0; 4], &[], Vector3::zeros());
+        // The parent points at the child's first three nodes: trilinear weights in the unit cube
+        // (extrapolated above it, still exact for affine motion).
+        let weights = |p: Vector3<f64>| {
+            let mut w = [0.0; 8];
+            for (c, wc) in w.iter_mut().enumerate() {
+                let f = |a: usize, t: f64| if (c >> a) & 1 == 1 { t } else { 1.0 - t };
+                *wc = f(0, p.x) * f(1, p.y) * f(2, p.z);
+            }
+            w
+        };
+        let nodes = [0, 1, 2].map(|_| [0, 1, 2, 3, 4, 5, 6, 7]);
+        let w = [0, 1, 2].map(|k| weights(child_points[k]));
+        let mut a = Attachment::new(&world, child, parent, [8, 9, 10], nodes, w).unwrap();
+        let rotation = *Rotation3::from_euler_angles(0.3, -0.5, 0.9).matrix();
+        let shift = Vector3::new(0.4, -1.0, 2.0);
+        let rest = world.nodes.position.clone();
+        for (linear, all_exact) in [
+            (rotation * 1.2, true),
+            (
+                rotation * Matrix3::from_diagonal(&Vector3::new(1.3, 0.8, 1.1)),
+                false,
+            ),
+        ] {
+            world.nodes.position = rest.clone();
+            for i in 0..8 {
+                world.nodes.position[i] = linear * cube[i] + shift;
+            }
+            a.after_frame(&mut world);
+            for (j, p) in child_points.iter().enumerate() {
+                let err = (world.nodes.position[8 + j] - (linear * p + shift)).norm();
+                if j < 3 || all_exact {
+                    assert!(err < 1e-12, "node {j} off by {err}");
+                }
+            }
+        }
+    }
+}
