@@ -188,8 +188,8 @@ mod tests {
             ),
         ] {
             world.nodes.position = rest.clone();
-            for i in 0..8 {
-                world.nodes.position[i] = linear * cube[i] + shift;
+            for (x, c) in world.nodes.position.iter_mut().zip(&cube) {
+                *x = linear * c + shift;
             }
             a.after_frame(&mut world);
             for (j, p) in child_points.iter().enumerate() {
