@@ -2,11 +2,11 @@
 
 Usage: python bowling_blender.py FILE.glb
 
-Imports FILE into an empty scene and prints one JSON line last:
-{mesh_objects: n, names: [...], frame_start, frame_end (from the imported actions),
- objects: {name: {vertices, max_move: largest vertex displacement between the first and last
- animated frame, max_distance_change: largest change of a distance between two vertices (0 for
- a rigid motion)}}}, Blender world units.
+Imports FILE into an empty scene, steps through every animated frame and prints one JSON line
+last: {mesh_objects: n, names: [...], frame_start, frame_end (from the imported actions),
+objects: {name: {vertices, max_move: largest displacement of a vertex from the first animated
+frame, max_distance_change: largest change of a distance between two vertices from the first
+frame (0 for a rigid motion)}}}, Blender world units.
 """
 
 import json
@@ -38,21 +38,23 @@ def main():
     end = int(round(max(r[1] for r in ranges)))
     scene.frame_set(start)
     first = {o.name: world_vertices(o) for o in meshes}
-    scene.frame_set(end)
-    last = {o.name: world_vertices(o) for o in meshes}
-    objects = {}
-    for o in meshes:
-        a, b = first[o.name], last[o.name]
-        n = len(a)
-        # A rigid motion keeps every distance between vertices; a deformation changes some.
-        pairs = [(i, (i + 1) % n) for i in range(n)] + [(i, (i + n // 2) % n) for i in range(n)]
-        objects[o.name] = {
-            "vertices": n,
-            "max_move": max(((p - q).length for p, q in zip(a, b)), default=0.0),
-            "max_distance_change": max(
-                (abs((a[i] - a[j]).length - (b[i] - b[j]).length) for i, j in pairs), default=0.0
-            ),
-        }
+    objects = {
+        o.name: {"vertices": len(first[o.name]), "max_move": 0.0, "max_distance_change": 0.0}
+        for o in meshes
+    }
+    for frame in range(start, end + 1):
+        scene.frame_set(frame)
+        for o in meshes:
+            a, b = first[o.name], world_vertices(o)
+            n = len(a)
+            # A rigid motion keeps every distance between vertices; a deformation changes some.
+            pairs = [(i, (i + 1) % n) for i in range(n)] + [(i, (i + n // 2) % n) for i in range(n)]
+            rec = objects[o.name]
+            rec["max_move"] = max(rec["max_move"], max((p - q).length for p, q in zip(a, b)))
+            rec["max_distance_change"] = max(
+                rec["max_distance_change"],
+                max(abs((a[i] - a[j]).length - (b[i] - b[j]).length) for i, j in pairs),
+            )
     print(json.dumps({
         "mesh_objects": len(meshes),
         "names": [o.name for o in meshes],
