@@ -537,3 +537,47 @@ fn a_heavy_bottom_lowers_the_centre_of_mass_and_moves_less() {
     );
     assert!(top_heavy > 1.2 * bottom_heavy, "the body leans");
 }
+
+#[test]
+fn a_cage_body_keeps_its_volume_and_counts_inverted_tets() {
+    // A jelly ball in an icosahedron cage thrown at the floor at 3 m/s, with and without
+    // volume preservation; the tets are the body's cells.
+    let (p, t) = uv_sphere([0.0, 0.2, 0.0], 0.15, 8, 16);
+    let m = jelly();
+    let c = cage::primitive(Primitive::Icosahedron, &p).unwrap();
+    let run = |preserve: bool| {
+        let mut w = cage_on_floor(&c, &p, &t, &m);
+        let h = BodyHandle(0);
+        assert_eq!(w.bodies[0].cells.len(), 20);
+        assert_eq!(w.inverted_cells(), 0);
+        let v0 = w.body_volume(h);
+        assert!((v0 - c.volume()).abs() < 1e-12 * v0);
+        for v in &mut w.nodes.velocity {
+            v.y = -3.0;
+        }
+        if preserve {
+            w.preserve_volume(h, 1.0).unwrap();
+        }
+        let mut worst: f64 = 0.0;
+        for f in 0..24 {
+            w.advance_frame(1.0 / 24.0, f + 2, &|| false).unwrap();
+            worst = worst.max((w.body_volume(h) / v0 - 1.0).abs());
+        }
+        (worst, w)
+    };
+    let (kept, _) = run(true);
+    let (lost, mut w) = run(false);
+    println!("volume error with preservation {kept:.2e}, without {lost:.3}");
+    assert!(kept < 0.02, "{kept}");
+    assert!(lost > 2.0 * kept, "{lost} vs {kept}");
+    // Push the centre node through a face: the tets on the far side count as inverted.
+    let centre = c.nodes.len() - 1;
+    let far = w.nodes.position[0] + (w.nodes.position[0] - w.nodes.position[centre]) * 0.5;
+    w.nodes.position[centre] = far;
+    let d = w.diagnostics(0);
+    assert!(
+        d.inverted_cells >= 1 && d.inverted_cells < 20,
+        "{}",
+        d.inverted_cells
+    );
+}

@@ -103,6 +103,21 @@ pub struct BodyParameters {
     pub springs: Vec<(u32, u32, f64, f64)>,
 }
 
+/// Tet `t` as a degenerate lattice cell `[a, b, a, c, a, a, a, d]`: of the 6 Kuhn tets the
+/// volume code splits a cell into (around its 0–7 diagonal) only `[0, 1, 3, 7]` = `t` has
+/// volume, and the other five contribute exactly zero volume and zero gradient. So a cage
+/// body's tets sit in [`crate::solver::BodyInfo::cells`]: volume preservation holds the tets'
+/// volume, and the inverted-cell count tests the tet itself ([`is_tet_cell`]).
+pub fn tet_cell(t: [u32; 4]) -> [u32; 8] {
+    let [a, b, c, d] = t;
+    [a, b, a, c, a, a, a, d]
+}
+
+/// Whether a cell is a tet stored by [`tet_cell`] (lattice cells have 8 distinct nodes).
+pub fn is_tet_cell(c: &[u32; 8]) -> bool {
+    c[2] == c[0] && c[4] == c[0] && c[5] == c[0] && c[6] == c[0] && c[1] != c[0]
+}
+
 /// Signed volume of tet `t`.
 pub fn tet_volume(t: &[u32; 4], x: &[Vector3<f64>]) -> f64 {
     let a = x[t[0] as usize];
@@ -205,7 +220,8 @@ impl Cage {
     }
 
     /// Add the cage to `world` as a body: masses and springs from [`Self::body_parameters`],
-    /// all nodes moving at `velocity`, deformation damping as for a lattice of the same extent.
+    /// all nodes moving at `velocity`, deformation damping as for a lattice of the same extent,
+    /// its tets as the body's cells ([`tet_cell`]).
     pub fn add_to_world(
         &self,
         world: &mut World,
@@ -216,6 +232,12 @@ impl Cage {
     ) -> BodyHandle {
         let p = self.body_parameters(material, mass_volume);
         let handle = world.add_body(name, &self.nodes, &p.masses, &p.springs, velocity);
+        let base = world.bodies[handle.0].nodes.start as u32;
+        world.bodies[handle.0].cells = self
+            .tets
+            .iter()
+            .map(|t| tet_cell(t.map(|n| n + base)))
+            .collect();
         world.bodies[handle.0].deformation_damping =
             crate::solver::deformation_damping::damping_rate(
                 material.damping_ratio,

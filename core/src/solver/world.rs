@@ -1238,6 +1238,11 @@ impl World {
 /// `Vec<Point3>` of every node each frame).
 fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> bool {
     let p = |c: usize| positions[nodes[c] as usize];
+    if crate::cage::is_tet_cell(nodes) {
+        // A cage's tet stored as a degenerate cell (see `crate::cage::tet_cell`).
+        let a = p(0);
+        return (p(1) - a).dot(&(p(3) - a).cross(&(p(7) - a))) <= 0.0;
+    }
     (0..8).any(|c| {
         let ex = p(c ^ 1) - p(c);
         let ey = p(c ^ 2) - p(c);
