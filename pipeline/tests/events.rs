@@ -376,3 +376,58 @@ fn events_fire_and_act_the_same_on_one_and_two_threads() {
     assert_eq!(runs[0].centroid, runs[1].centroid);
     assert_eq!(runs[0].prepared.world.nodes, runs[1].prepared.world.nodes);
 }
+
+#[test]
+fn set_velocity_moves_a_rigid_body_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = format!(
+        "{}kind = \"rigid\"\n[[event]]\nname = \"go\"\nbody = \"cube\"\non = {{ frame = 3 }}\n\
+         procedure = {{ set_velocity = [0.0, 0.0, -2.0] }}\n",
+        head(9, 0.0, false)
+    );
+    let r = run(dir.path(), &scene);
+    // From frame 3 to 9 (0.25 s) at 2 m/s along −z.
+    let moved = r.centroid[8] - r.centroid[2];
+    assert!(
+        (moved - Vector3::new(0.0, 0.0, -0.5)).norm() < 1e-6,
+        "{moved:?}"
+    );
+}
+
+#[test]
+fn pin_holds_the_body_until_unpin_and_a_timed_force_gives_its_impulse() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = format!(
+        "{}offset = [0.0, 1.0, 0.0]\n\
+         [[event]]\nname = \"hold\"\nbody = \"cube\"\non = {{ frame = 3 }}\nprocedure = \"pin\"\n\
+         [[event]]\nname = \"drop\"\nbody = \"cube\"\non = {{ frame = 10 }}\nprocedure = \"unpin\"\n",
+        head(14, 9.81, false)
+    );
+    let r = run(dir.path(), &scene);
+    let c = &r.centroid;
+    assert!(c[0].y - c[2].y > 0.01, "fell before the pin");
+    assert!((c[9] - c[2]).norm() < 1e-9, "held from frame 3 to 10");
+    assert!(c[9].y - c[13].y > 0.05, "fell again after unpin");
+
+    // 2 N along x for 0.5 s on a free body: momentum 1 N·s.
+    let loaded = load(dir.path(), &head(2, 0.0, false));
+    let p = prepare(&default_registry(), &loaded, &mut Seconds::default()).unwrap();
+    let (mass, _, _) = centre_of_mass(&p.world, p.bodies[0].handle);
+    let scene = format!(
+        "{}[[event]]\nname = \"push\"\nbody = \"cube\"\non = {{ time = 0.0 }}\n\
+         procedure = {{ apply_force = {{ force_n = [2.0, 0.0, 0.0], duration_secs = 0.5 }} }}\n",
+        head(24, 0.0, false)
+    );
+    let r = run(dir.path(), &scene);
+    let (_, _, v) = centre_of_mass(&r.prepared.world, r.prepared.bodies[0].handle);
+    assert!(
+        (v.x * mass - 1.0).abs() < 1e-9,
+        "momentum {} N·s",
+        v.x * mass
+    );
+    // Uniform acceleration for 0.5 s, then coasting 0.458 s: x = ½ a t² + a t · 0.458.
+    let a = 2.0 / mass;
+    let want = 0.5 * a * 0.25 + a * 0.5 * (23.0 / 24.0 - 0.5);
+    let got = r.centroid[23].x - r.centroid[0].x;
+    assert!((got - want).abs() < 1e-6, "moved {got} m, want {want} m");
+}
