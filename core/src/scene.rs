@@ -25,6 +25,9 @@ pub struct SceneFile {
     pub body: Vec<BodySection>,
     #[serde(default)]
     pub manipulator: Vec<ManipulatorSection>,
+    /// Static colliders: rigid triangle meshes the bodies collide with.
+    #[serde(default)]
+    pub collider: Vec<ColliderSection>,
     /// Pin and trajectory constraints (Terasawa §3.1).
     #[serde(default)]
     pub constraint: Vec<ConstraintSection>,
@@ -139,6 +142,10 @@ pub struct WorldSection {
     /// Wind acting on every node as air drag.
     #[serde(default)]
     pub wind: Option<WindSpec>,
+    /// Body–body and body–collider contact: `"layer"` (the elastic layer, default) or
+    /// `"hertz"` (Hertz's force law from the mass-spring model, physics §10).
+    #[serde(default)]
+    pub contact: ContactSpec,
 }
 
 /// `[world.wind]`: `F = m · drag_per_s · (w(t) − v)`, `w(t) = velocity + gust·sin(2π gust_hz t)`.
@@ -178,6 +185,7 @@ impl Default for WorldSection {
             contact_thickness: None,
             contact_stiffness: None,
             wind: None,
+            contact: ContactSpec::default(),
         }
     }
 }
@@ -188,6 +196,32 @@ impl Default for WorldSection {
 pub struct RoomSpec {
     pub min: [f64; 3],
     pub max: [f64; 3],
+}
+
+/// `[world] contact`: the response between bodies and against colliders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ContactSpec {
+    #[default]
+    Layer,
+    Hertz,
+}
+
+/// `[[collider]]`: a static triangle mesh (any importer's format) bodies collide with.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderSection {
+    /// Mesh file, relative to the scene file; every mesh in it is part of the collider.
+    pub source: PathBuf,
+    /// A name for reports (default: the file name).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Moves the mesh, metres, world frame.
+    #[serde(default)]
+    pub offset: [f64; 3],
+    /// Coulomb friction on its surface.
+    #[serde(default = "default_friction")]
+    pub friction: f64,
 }
 
 /// `[solver]`
@@ -784,6 +818,28 @@ material = { young = 2e5, density = 1000, poisson = 0.45, damping = 0.05 }
         .unwrap_err();
         assert!(err.message.contains("densty"), "{}", err.message);
         assert_eq!(err.line, Some(3));
+    }
+
+    #[test]
+    fn colliders_and_the_contact_model_parse_and_unknown_keys_are_named() {
+        let s = SceneFile::parse(
+            "[world]\ncontact = \"hertz\"\n[[collider]]\nsource = \"lane.glb\"\nname = \"lane\"\n\
+             offset = [0.0, -0.1, 0.0]\nfriction = 0.2\n[[collider]]\nsource = \"b.obj\"\n",
+        )
+        .unwrap();
+        assert_eq!(s.world.contact, ContactSpec::Hertz);
+        assert_eq!(s.collider.len(), 2);
+        assert_eq!(s.collider[0].name.as_deref(), Some("lane"));
+        assert_eq!(s.collider[0].offset, [0.0, -0.1, 0.0]);
+        assert_eq!(s.collider[0].friction, 0.2);
+        assert_eq!(s.collider[1].friction, 0.4);
+        assert_eq!(SceneFile::default().world.contact, ContactSpec::Layer);
+        let err =
+            SceneFile::parse("[[collider]]\nsource = \"a.glb\"\nfriction_ = 1\n").unwrap_err();
+        assert_eq!(err.line, Some(3));
+        assert!(err.message.contains("friction"), "{}", err.message);
+        let err = SceneFile::parse("[world]\ncontact = \"soft\"\n").unwrap_err();
+        assert!(err.message.contains("hertz"), "{}", err.message);
     }
 
     #[test]

@@ -384,3 +384,52 @@ fn hertz_contact_matches_the_closed_form_pulse() {
         hz.t_max
     );
 }
+
+#[test]
+fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let m = Material::preset("soft_rubber").unwrap();
+                let (pa, ta) = box_mesh([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1]);
+                let (pb, tb) = box_mesh([0.1, 0.07, -0.04], [0.3, 0.27, 0.16]);
+                let (pc, tc) = box_mesh([-1.0, -0.3, -1.0], [1.0, -0.01, 1.0]);
+                let lattice = fit_lattice(
+                    &pa,
+                    &ta,
+                    &FitSettings {
+                        resolution: Resolution::CellsAlongLongest(4),
+                        ..FitSettings::default()
+                    },
+                )
+                .unwrap();
+                let mut w = World::new(WorldSettings {
+                    gravity: Vector3::new(0.0, -9.81, 0.0),
+                    layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+                    ..WorldSettings::default()
+                });
+                w.add_collider(StaticCollider::new("table", &pc, &tc, 0.4).unwrap());
+                add_body(&mut w, "a", &pa, &ta, 4, &m, Vector3::new(3.0, 0.0, 0.0));
+                add_body(&mut w, "b", &pb, &tb, 4, &m, Vector3::new(-3.0, 0.0, 0.0));
+                let mut log = Vec::new();
+                for f in 2..=8 {
+                    w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+                    log.extend(w.frame_contacts().iter().copied());
+                }
+                (w.nodes.clone(), log)
+            })
+    };
+    let (one, log1) = run(1);
+    let (two, log2) = run(2);
+    assert!(log1
+        .iter()
+        .any(|r| matches!(r.partner, ContactPartner::Body(_))));
+    assert!(log1
+        .iter()
+        .any(|r| matches!(r.partner, ContactPartner::Collider(_))));
+    assert_eq!(one, two);
+    assert_eq!(log1, log2);
+}

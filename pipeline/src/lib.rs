@@ -10,6 +10,7 @@
 //!
 //! [`bake`] runs all four and returns the report (`--report` JSON).
 
+mod colliders;
 pub mod events;
 mod frame;
 mod models;
@@ -106,6 +107,12 @@ impl LoadedScene {
         let mut out: Vec<PathBuf> = self.scene_path.iter().cloned().collect();
         for b in &self.scene.body {
             let p = self.source_path(b);
+            if !out.contains(&p) {
+                out.push(p);
+            }
+        }
+        for c in &self.scene.collider {
+            let p = self.base_dir.join(&c.source);
             if !out.contains(&p) {
                 out.push(p);
             }

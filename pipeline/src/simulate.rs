@@ -381,6 +381,8 @@ pub fn prepare(
             local_from_sim: p.local_from_sim,
         });
     }
+    // Contact between the bodies and with the `[[collider]]`s (see `colliders`).
+    crate::colliders::wire(registry, loaded, &frame, &mut world, &bodies, &export_scene)?;
     add_constraints(scene, &mut world, &body_names)?;
     crate::models::add_joints(scene, &mut world, &body_names)?;
     let events = crate::events::EventDriver::wire(scene, registry, &mut world, &bodies).map_err(

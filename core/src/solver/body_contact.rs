@@ -273,7 +273,26 @@ pub(crate) fn step_contacts(
         dt: scene.dt,
     };
     contact_pass(bc, log, &input);
-    log.end_step();
+    let body_velocity = |b: usize| {
+        let range = bodies[b].nodes.clone();
+        let (mut p, mut m) = (Vector3::zeros(), 0.0);
+        for i in range {
+            p += nodes.velocity[i] * nodes.mass[i];
+            m += nodes.mass[i];
+        }
+        if m > 0.0 {
+            p / m
+        } else {
+            Vector3::zeros()
+        }
+    };
+    let capsule_velocity = |c: usize| {
+        scene
+            .capsules
+            .get(c)
+            .map_or_else(Vector3::zeros, |cap| cap.velocity)
+    };
+    log.end_step(&body_velocity, &capsule_velocity);
 }
 
 /// [`step_contacts`] for a Newmark-β step (no surface contact pass of its own to share): the
@@ -822,12 +841,11 @@ fn respond(
             mass,
             dt,
         );
-        let approach = -c.relative_velocity.dot(&c.normal);
         apply(&mut bc.force, &bc.meshes, input.surface, c.a, f);
         apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
-        log.add(a, partner, f, approach);
+        log.add(a, partner, f, c.normal);
         if let Some(b) = b {
-            log.add(b, ContactPartner::Body(a), -f, approach);
+            log.add(b, ContactPartner::Body(a), -f, -c.normal);
         }
     }
 }
@@ -995,9 +1013,10 @@ fn row_start(n: usize, i: usize) -> usize {
 impl World {
     /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
     /// counter-clockwise from outside) for contact with other bodies: its vertices are
-    /// embedded in `lattice` (the body's own). The body's contact samples (see
-    /// [`World::add_contact_surface`]) touch the other bodies' triangles and the static
-    /// colliders. Call before stepping.
+    /// embedded in `lattice` (the body's own), triangles longer than half a cell refined
+    /// first. The body's contact samples (see [`World::add_contact_surface`]) touch the other
+    /// bodies' triangles and the static colliders. Call before stepping. A lattice without
+    /// cells (a cage's view) cannot embed: use [`World::add_embedded_collision_surface`].
     pub fn add_collision_surface(
         &mut self,
         body: BodyHandle,
@@ -1005,15 +1024,73 @@ impl World {
         positions: &[Point3<f64>],
         triangles: &[[u32; 3]],
     ) {
-        let info = &self.bodies[body.0];
+        if lattice.cells.is_empty() {
+            return;
+        }
+        let (refined, refined_triangles) = refine(positions, triangles, 0.5 * lattice.cell_size);
+        let embedding = Embedding::new(lattice, &refined);
+        self.register_mesh(
+            body,
+            &embedding,
+            positions,
+            triangles,
+            &refined,
+            refined_triangles,
+            lattice.cell_size,
+        );
+    }
+
+    /// [`World::add_collision_surface`] for a body whose display vertices are already embedded
+    /// in its nodes (`embedding`, body-local node indices, one entry per position; e.g. a cage
+    /// model's), with `spacing` its node spacing, m. Triangles are not refined.
+    pub fn add_embedded_collision_surface(
+        &mut self,
+        body: BodyHandle,
+        embedding: &Embedding,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        spacing: f64,
+    ) {
+        if embedding.len() != positions.len() {
+            return;
+        }
+        let kept: Vec<[u32; 3]> = triangles
+            .iter()
+            .filter(|t| t.iter().all(|&i| (i as usize) < positions.len()))
+            .copied()
+            .collect();
+        self.register_mesh(
+            body, embedding, positions, triangles, positions, kept, spacing,
+        );
+    }
+
+    /// Store a collision mesh: `display` triangles over `positions` (for edges and the local
+    /// radius), `refined` triangles over `refined_positions` (a superset of `positions`, same
+    /// leading indices) embedded by `embedding` (body-local nodes).
+    #[allow(clippy::too_many_arguments)]
+    fn register_mesh(
+        &mut self,
+        body: BodyHandle,
+        embedding: &Embedding,
+        positions: &[Point3<f64>],
+        display: &[[u32; 3]],
+        refined_positions: &[Point3<f64>],
+        triangles: Vec<[u32; 3]>,
+        spacing: f64,
+    ) {
+        let Some(info) = self.bodies.get(body.0) else {
+            return;
+        };
         let base = info.nodes.start as u32;
-        // Display edges, before refinement (refinement keeps the corners' indices).
+        let display: Vec<[u32; 3]> = display
+            .iter()
+            .filter(|t| t.iter().all(|&i| (i as usize) < positions.len()))
+            .copied()
+            .collect();
+        // Display edges (refinement keeps the corners' indices).
         let mut seen = std::collections::BTreeSet::new();
         let mut edges = Vec::new();
-        for t in triangles {
-            if t.iter().any(|&i| i as usize >= positions.len()) {
-                continue;
-            }
+        for t in &display {
             for e in 0..3 {
                 let (i, j, k) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
                 if seen.insert((i.min(j), i.max(j))) {
@@ -1021,19 +1098,11 @@ impl World {
                 }
             }
         }
-        let display: Vec<[u32; 3]> = triangles
-            .iter()
-            .filter(|t| t.iter().all(|&i| (i as usize) < positions.len()))
-            .copied()
-            .collect();
-        let (positions, triangles) = refine(positions, triangles, 0.5 * lattice.cell_size);
-        let positions = &positions[..];
-        let embedding = Embedding::new(lattice, positions);
         let mut edge_sum = 0.0;
         for tri in &triangles {
             for e in 0..3 {
-                let (i, j) = (tri[e], tri[(e + 1) % 3]);
-                edge_sum += (positions[i as usize] - positions[j as usize]).norm();
+                let (i, j) = (tri[e] as usize, tri[(e + 1) % 3] as usize);
+                edge_sum += (refined_positions[i] - refined_positions[j]).norm();
             }
         }
         let springs: Vec<hertz::SpringEdge> = info
@@ -1045,10 +1114,9 @@ impl World {
                 k_n_per_m: self.springs.stiffness[s],
             })
             .collect();
-        let young =
-            hertz::young_from_springs(&springs, hertz::lattice_spring_area_m2(lattice.cell_size))
-                .unwrap_or(f64::INFINITY);
-        let n = positions.len();
+        let young = hertz::young_from_springs(&springs, hertz::lattice_spring_area_m2(spacing))
+            .unwrap_or(f64::INFINITY);
+        let n = refined_positions.len();
         let mesh = BodyMesh {
             body: body.0,
             nodes: embedding
@@ -1056,16 +1124,16 @@ impl World {
                 .iter()
                 .map(|c| c.map(|i| i + base))
                 .collect(),
-            weights: embedding.weights,
+            weights: embedding.weights.clone(),
             mean_edge: if triangles.is_empty() {
-                lattice.cell_size
+                spacing
             } else {
                 edge_sum / (3 * triangles.len()) as f64
             },
             triangles,
             edges,
             display,
-            cell: lattice.cell_size,
+            cell: spacing,
             young,
             stamp: 0,
             x: vec![Vector3::zeros(); n],

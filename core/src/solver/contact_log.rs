@@ -4,7 +4,10 @@
 //!
 //! Contacts are observed in the force pass of every step, from the state the step's forces are
 //! evaluated at (so the speed logged at first touch is the approach speed *before* the contact
-//! force acted). Per step, the forces on each body are summed per partner into a fixed
+//! force acted). The impact speed is the body's: its centre-of-mass velocity relative to the
+//! partner's (another body's centre of mass, a manipulator's velocity, zero for the floor,
+//! walls and colliders) along the mean normal of the touching contacts; a surface point's own
+//! velocity would also count the ringing of a soft surface, which re-touches many times. Per step, the forces on each body are summed per partner into a fixed
 //! `bodies × slots` table (no allocation once sized); at the end of the step the table updates
 //! the frame's running values; at the end of the frame the touched pairs become records, in
 //! body order, then partner order (floor, wall, manipulators, bodies, colliders).
@@ -39,9 +42,9 @@ pub struct ContactRecord {
     /// Index of the body in the world.
     pub body: usize,
     pub partner: ContactPartner,
-    /// Largest approach speed along the contact normal at a first touch in the frame (the
-    /// step the pair began touching), m/s; 0 when the pair was already touching as the frame
-    /// began and never separated.
+    /// Largest approach speed at a first touch in the frame (the step the pair began
+    /// touching): centre-of-mass velocities along the contact normal (module docs), m/s; 0
+    /// when the pair was already touching as the frame began and never separated.
     pub impact_speed: f64,
     /// Largest total force on the body from that partner at any step of the frame, N.
     pub peak_force: f64,
@@ -53,7 +56,8 @@ pub struct ContactRecord {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct StepPair {
     force: Vector3<f64>,
-    approach: f64,
+    /// Sum of the contacts' unit normals (from the partner into the body).
+    normal: Vector3<f64>,
     touching: bool,
 }
 
@@ -109,14 +113,7 @@ impl ContactLog {
     }
 
     fn partner(&self, slot: usize) -> ContactPartner {
-        let (c, b) = (self.capsules, self.bodies);
-        match slot {
-            0 => ContactPartner::Floor,
-            1 => ContactPartner::Wall,
-            s if s < 2 + c => ContactPartner::Manipulator(s - 2),
-            s if s < 2 + c + b => ContactPartner::Body(s - 2 - c),
-            s => ContactPartner::Collider(s - 2 - c - b),
-        }
+        partner_of(slot, self.capsules, self.bodies)
     }
 
     /// Start a frame: forget the last frame's values (the touching state carries over).
@@ -133,14 +130,14 @@ impl ContactLog {
         self.step.fill(StepPair::default());
     }
 
-    /// A contact of `body` with `partner` this step: `force` on the body, `approach` the
-    /// approach speed along the contact normal (positive closing).
+    /// A contact of `body` with `partner` this step: `force` on the body, `normal` the unit
+    /// contact normal from the partner into the body.
     pub(crate) fn add(
         &mut self,
         body: usize,
         partner: ContactPartner,
         force: Vector3<f64>,
-        approach: f64,
+        normal: Vector3<f64>,
     ) {
         if body >= self.bodies {
             return;
@@ -148,17 +145,31 @@ impl ContactLog {
         let i = body * self.stride() + self.slot(partner);
         if let Some(s) = self.step.get_mut(i) {
             s.force += force;
-            s.approach = s.approach.max(approach);
+            s.normal += normal;
             s.touching = true;
         }
     }
 
-    /// End a step: fold its table into the frame's values.
-    pub(crate) fn end_step(&mut self) {
-        for (s, f) in self.step.iter().zip(self.frame.iter_mut()) {
+    /// End a step: fold its table into the frame's values. `body_velocity(b)`: body `b`'s
+    /// centre-of-mass velocity; `capsule_velocity(i)`: manipulator `i`'s (both asked only for
+    /// pairs that begin touching).
+    pub(crate) fn end_step(
+        &mut self,
+        body_velocity: &dyn Fn(usize) -> Vector3<f64>,
+        capsule_velocity: &dyn Fn(usize) -> Vector3<f64>,
+    ) {
+        let (stride, capsules, bodies) = (self.stride(), self.capsules, self.bodies);
+        for (i, (s, f)) in self.step.iter().zip(self.frame.iter_mut()).enumerate() {
             if s.touching {
                 if !f.touching {
-                    f.impact = f.impact.max(s.approach);
+                    let partner_velocity = match partner_of(i % stride, capsules, bodies) {
+                        ContactPartner::Manipulator(c) => capsule_velocity(c),
+                        ContactPartner::Body(b) => body_velocity(b),
+                        _ => Vector3::zeros(),
+                    };
+                    let relative = body_velocity(i / stride) - partner_velocity;
+                    let n = s.normal.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
+                    f.impact = f.impact.max(-relative.dot(&n));
                 }
                 f.touched = true;
                 f.peak = f.peak.max(s.force.norm());
@@ -187,6 +198,17 @@ impl ContactLog {
     /// The last frame's records.
     pub fn records(&self) -> &[ContactRecord] {
         &self.records
+    }
+}
+
+/// The partner of table column `slot` with `c` manipulators and `b` bodies.
+fn partner_of(slot: usize, c: usize, b: usize) -> ContactPartner {
+    match slot {
+        0 => ContactPartner::Floor,
+        1 => ContactPartner::Wall,
+        s if s < 2 + c => ContactPartner::Manipulator(s - 2),
+        s if s < 2 + c + b => ContactPartner::Body(s - 2 - c),
+        s => ContactPartner::Collider(s - 2 - c - b),
     }
 }
 
@@ -232,7 +254,7 @@ impl RigidScene<'_> {
             } else {
                 ContactPartner::Wall
             };
-            log.add(body, partner, f, -v.dot(&plane.normal));
+            log.add(body, partner, f, plane.normal);
         }
         for (j, cap) in self.capsules.iter().enumerate() {
             let d = x - cap.closest_point(&x);
@@ -247,12 +269,7 @@ impl RigidScene<'_> {
             };
             let one = std::slice::from_ref(cap);
             let (f, _, _) = node_contacts(layer, &[], one, x, v, mass, self.dt);
-            log.add(
-                body,
-                ContactPartner::Manipulator(j),
-                f,
-                -(v - cap.velocity).dot(&n),
-            );
+            log.add(body, ContactPartner::Manipulator(j), f, n);
         }
     }
 }
@@ -393,38 +410,72 @@ mod tests {
     fn first_touch_speed_peak_force_and_order() {
         let mut log = ContactLog::default();
         log.ensure(2, 1, 1);
+        // Body 1 falls at 3 m/s (and drifts sideways: only the normal part counts); body 0
+        // moves at 0.5 m/s into collider 0; manipulator 0 moves at 2 m/s towards body 1.
+        let bodies = |b: usize| {
+            if b == 1 {
+                Vector3::new(4.0, -3.0, 0.0)
+            } else {
+                Vector3::new(-0.5, 0.0, 0.0)
+            }
+        };
+        let capsule = |_: usize| Vector3::new(0.0, 0.0, 2.0);
         log.begin_frame();
-        // Step 1: body 1 hits the floor at 3 m/s; body 0 is touched by collider 0.
+        // Step 1: body 1 hits the floor; body 0 is touched by collider 0.
         log.begin_step();
-        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 5.0, 0.0), 3.0);
         log.add(
-            0,
-            ContactPartner::Collider(0),
-            Vector3::new(1.0, 0.0, 0.0),
-            0.5,
+            1,
+            ContactPartner::Floor,
+            Vector3::new(0.0, 5.0, 0.0),
+            Vector3::y(),
         );
-        log.end_step();
-        // Step 2: body 1 still on the floor (slower, larger force), manipulator 0 on body 1.
+        log.add(0, ContactPartner::Collider(0), Vector3::x(), Vector3::x());
+        log.end_step(&bodies, &capsule);
+        // Step 2: body 1 still on the floor (larger force), manipulator 0 on body 1.
         log.begin_step();
-        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 8.0, 0.0), 1.0);
-        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 2.0, 0.0), 0.2);
-        log.add(1, ContactPartner::Manipulator(0), Vector3::zeros(), 0.1);
-        log.end_step();
+        log.add(
+            1,
+            ContactPartner::Floor,
+            Vector3::new(0.0, 8.0, 0.0),
+            Vector3::y(),
+        );
+        log.add(
+            1,
+            ContactPartner::Floor,
+            Vector3::new(0.0, 2.0, 0.0),
+            Vector3::y(),
+        );
+        log.add(
+            1,
+            ContactPartner::Manipulator(0),
+            Vector3::zeros(),
+            Vector3::z(),
+        );
+        log.end_step(&|_| Vector3::new(0.0, -9.0, 0.0), &capsule);
         log.end_frame();
         let r = log.records();
         assert_eq!(r.len(), 3);
         assert_eq!((r[0].body, r[0].partner), (0, ContactPartner::Collider(0)));
+        assert_eq!(r[0].impact_speed, 0.5);
         assert!(!r[0].touching_at_end);
         assert_eq!((r[1].body, r[1].partner), (1, ContactPartner::Floor));
         assert_eq!(r[1].impact_speed, 3.0, "speed at first touch, not later");
         assert_eq!(r[1].peak_force, 10.0, "forces of one step add");
         assert!(r[1].touching_at_end);
+        // Relative to the manipulator, (0, −9, 0) − (0, 0, 2), along the normal +z (from the
+        // capsule into the body): 2 m/s closing.
         assert_eq!(r[2].partner, ContactPartner::Manipulator(0));
+        assert_eq!(r[2].impact_speed, 2.0);
         // Next frame: still touching the floor from the start, so no new impact.
         log.begin_frame();
         log.begin_step();
-        log.add(1, ContactPartner::Floor, Vector3::new(0.0, 1.0, 0.0), 2.0);
-        log.end_step();
+        log.add(
+            1,
+            ContactPartner::Floor,
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::y(),
+        );
+        log.end_step(&bodies, &capsule);
         log.end_frame();
         let r = log.records();
         assert_eq!(r.len(), 1);
