@@ -431,3 +431,32 @@ fn pin_holds_the_body_until_unpin_and_a_timed_force_gives_its_impulse() {
     let got = r.centroid[23].x - r.centroid[0].x;
     assert!((got - want).abs() < 1e-6, "moved {got} m, want {want} m");
 }
+
+#[test]
+fn a_collision_event_names_a_static_collider() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut table = String::from("o Table\n");
+    for c in 0..8 {
+        let x = if c & 1 == 0 { -0.5 } else { 0.5 };
+        let y = if c & 2 == 0 { 0.0 } else { 0.3 };
+        let z = if c & 4 == 0 { -0.5 } else { 0.5 };
+        table += &format!("v {x} {y} {z}\n");
+    }
+    table += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    std::fs::write(dir.path().join("table.obj"), table).unwrap();
+    let scene = format!(
+        "{}offset = [0.0, 0.5, 0.0]\n[[collider]]\nsource = \"table.obj\"\nname = \"table\"\n\
+         [[event]]\nname = \"land\"\nbody = \"cube\"\non = {{ collision = \"table\" }}\nprocedure = \"settle\"\n",
+        head(16, 9.81, false)
+    );
+    let r = run(dir.path(), &scene);
+    let fired = log(&r.events);
+    assert_eq!(fired.len(), 1, "{fired:?}");
+    // Landed on the table (its top at 0.3 m; the contact layer lies outside it), not through
+    // it, and frozen there; it fell from 0.5 m.
+    let at = fired[0].0 as usize - 1;
+    let bottom = r.centroid[at].y - 0.1;
+    assert!(bottom > 0.28 && bottom < 0.4, "cube bottom at {bottom} m");
+    assert!(at > 3, "fired at frame {}", at + 1);
+    assert!((r.centroid[15] - r.centroid[at]).norm() < 1e-9);
+}
