@@ -240,7 +240,7 @@ pub struct SolverSection {
     #[serde(default = "default_dispersion_iterations")]
     pub max_dispersion_iterations: u32,
     /// `"symplectic_euler"` (Miyazaki, default) or `"newmark"` (Terasawa's iterative
-    /// Newmark-β; no velocity dispersion).
+    /// Newmark-β; the dispersion and deformation damping act after its corrector).
     #[serde(default)]
     pub integrator: IntegratorSpec,
     /// β of Newmark-β: 0.25 (average acceleration) or 1/6 (linear acceleration).

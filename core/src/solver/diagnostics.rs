@@ -33,6 +33,13 @@ pub struct FrameDiagnostics {
     pub dispersion_iterations: u32,
     /// Steps in this frame whose dispersion sweeps hit the iteration cap.
     pub dispersion_cap_hits: u32,
+    /// Newmark-β predictor-corrector iterations summed over the frame's steps (0 under
+    /// symplectic Euler).
+    pub newmark_iterations: u32,
+    /// Most iterations one step of the frame needed.
+    pub newmark_max_iterations: u32,
+    /// Steps whose iterations stopped at the cap without reaching the tolerance.
+    pub newmark_cap_hits: u32,
     pub inverted_cells: usize,
     /// Deepest penetration into any contact layer, metres.
     pub max_penetration: f64,

@@ -20,6 +20,7 @@ pub mod joints;
 pub mod manipulator;
 pub mod miyazaki1996_velocity_dispersion;
 pub mod newmark;
+mod newmark_post;
 pub mod regions;
 pub mod rigid;
 pub mod substeps;

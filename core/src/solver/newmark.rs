@@ -21,8 +21,8 @@
 //! (bodies given a contact surface) are evaluated like the node contacts, spread onto their
 //! cells' nodes by the trilinear weights, without the symplectic step's broad phase.
 //!
-//! Not in this integrator (use symplectic Euler for them): the velocity-dispersion fusion
-//! model and the deformation damping towards the rigid motion.
+//! After the corrector the velocity-dispersion fusion model and the deformation damping
+//! towards the rigid motion act as in the symplectic step ([`super::newmark_post`]).
 
 use super::constraints::TrajectoryConstraint;
 use super::contact::node_contacts;
@@ -101,6 +101,8 @@ pub(crate) struct NewmarkState {
     contact_velocity: Vec<Vector3<f64>>,
     /// The current guess of a_{n+1}.
     guess: Vec<Vector3<f64>>,
+    /// Dispersion colouring and scratch.
+    post: super::newmark_post::PostState,
 }
 
 /// What one Newmark step did.
@@ -108,6 +110,8 @@ pub(crate) struct NewmarkOutcome {
     pub iterations: u32,
     pub cap_hit: bool,
     pub max_depth: f64,
+    /// The velocity dispersion after the corrector.
+    pub dispersion: super::miyazaki1996_velocity_dispersion::DispersionStats,
 }
 
 /// Accelerations F/m at the state `trial` and time `t` into `out` (constrained nodes not yet
@@ -307,11 +311,13 @@ pub(crate) fn step(
     }
     std::mem::swap(&mut st.acceleration, &mut guess);
     st.guess = guess;
+    let dispersion = super::newmark_post::after_corrector(world, &mut st.post, dt);
     world.newmark = Some(st);
     NewmarkOutcome {
         iterations,
         cap_hit: !converged,
         max_depth,
+        dispersion,
     }
 }
 

@@ -274,6 +274,9 @@ struct FrameAccumulator {
     max_depth: f64,
     reaction_sum: Vector3<f64>,
     steps: u32,
+    newmark_iterations: u32,
+    newmark_max_iterations: u32,
+    newmark_cap_hits: u32,
 }
 
 impl World {
@@ -645,9 +648,18 @@ impl World {
                 self.time += dt;
                 acc.max_depth = acc.max_depth.max(out.max_depth);
                 acc.steps += 1;
+                acc.newmark_iterations += out.iterations;
+                acc.newmark_max_iterations = acc.newmark_max_iterations.max(out.iterations);
+                acc.newmark_cap_hits += out.cap_hit as u32;
+                acc.corrections += out.dispersion.corrections;
+                acc.iterations += out.dispersion.iterations;
+                acc.cap_hits += out.dispersion.hit_cap as u32;
                 StepStats {
                     newmark_iterations: out.iterations,
                     newmark_cap_hit: out.cap_hit,
+                    dispersion_corrections: out.dispersion.corrections,
+                    dispersion_iterations: out.dispersion.iterations,
+                    dispersion_cap_hit: out.dispersion.hit_cap,
                     ..StepStats::default()
                 }
             }
@@ -1013,6 +1025,9 @@ impl World {
         diag.dispersion_corrections = acc.corrections;
         diag.dispersion_iterations = acc.iterations;
         diag.dispersion_cap_hits = acc.cap_hits;
+        diag.newmark_iterations = acc.newmark_iterations;
+        diag.newmark_max_iterations = acc.newmark_max_iterations;
+        diag.newmark_cap_hits = acc.newmark_cap_hits;
         diag.max_penetration = acc.max_depth;
         if acc.steps > 0 {
             diag.manipulator_reaction = (acc.reaction_sum / acc.steps as f64).into();
