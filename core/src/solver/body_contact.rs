@@ -150,6 +150,9 @@ struct Contact {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BodyContact {
     pub model: ContactModel,
+    /// Body pairs that never touch each other: articulated bodies sharing a joint node (see
+    /// [`super::joints`]), as (lower, higher) body index.
+    pub(crate) ignored_pairs: Vec<(usize, usize)>,
     meshes: Vec<BodyMesh>,
     colliders: Vec<StaticCollider>,
     /// Per node: the contact forces of this step (valid when `active`).
@@ -367,7 +370,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             let (blo, bhi) = bc.boxes[b];
             let lo = alo.sup(&blo).add_scalar(-h);
             let hi = ahi.inf(&bhi).add_scalar(h);
-            let apart = (0..3).any(|k| lo[k] > hi[k]);
+            let apart = (0..3).any(|k| lo[k] > hi[k]) || bc.ignored_pairs.contains(&(a, b));
             let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
             bc.contacts.clear();
             if !apart && has_faces {

@@ -8,6 +8,9 @@
 //! deformation damping fit and its baked embedding keep working); after every step `j` is
 //! set to `i`'s position and velocity ([`sync`]), so the two are the same point exactly.
 //!
+//! Joined bodies do not collide with each other (their body–body contact is skipped: the
+//! links overlap at the joint); they still touch everything else.
+//!
 //! What this costs: B's volume correction (if any) cannot move `j` (it has no mass) and does
 //! not reach `i`; a rigid or particle body cannot take part (its frame would ignore the
 //! springs of the other body), so joining one is refused.
@@ -66,7 +69,14 @@ pub fn join_bodies_at(
     }
     let i = nearest_body_node(world, a, at).ok_or(JointError::NoBody(a.0))?;
     let j = nearest_body_node(world, b, at).ok_or(JointError::NoBody(b.0))?;
-    join_nodes(world, i, j)
+    let shared = join_nodes(world, i, j)?;
+    // Linked parts overlap at the joint: they do not collide with each other.
+    let pair = (a.0.min(b.0), a.0.max(b.0));
+    let ignored = &mut world.body_contact.ignored_pairs;
+    if !ignored.contains(&pair) {
+        ignored.push(pair);
+    }
+    Ok(shared)
 }
 
 /// The node `n` stands for (itself, or the node it was joined into).
