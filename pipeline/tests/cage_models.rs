@@ -296,3 +296,98 @@ fn a_heavy_bottom_region_adds_mass_low_down() {
         "{e}"
     );
 }
+
+#[test]
+fn a_flag_in_a_plane_cage_waves_from_its_pole() {
+    // A 1 m × 0.6 m flag (10 × 6 quads, x–y plane) in a plane cage of 8 cells, its pole edge
+    // (x = 0) pinned, in gravity and a gusting wind along +z, for 2 s.
+    let dir = tempfile::tempdir().unwrap();
+    let (nx, ny) = (10u32, 6u32);
+    let mut p = Vec::new();
+    for j in 0..=ny {
+        for i in 0..=nx {
+            p.push(Point3::new(i as f64 * 0.1, 1.0 + j as f64 * 0.1, 0.0));
+        }
+    }
+    let mut t = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = j * (nx + 1) + i;
+            t.push([a, a + 1, a + nx + 2]);
+            t.push([a, a + nx + 2, a + nx + 1]);
+        }
+    }
+    write_obj(&dir.path().join("flag.obj"), &p, &t);
+    let scene = "[output]\npath = \"out.glb\"\nframes = 48\ncache = \"skin\"\n\
+                 [world]\nwind = { velocity = [0.0, 0.0, 4.0], gust = [0.0, 0.0, 2.0], gust_hz = 1.5 }\n\
+                 [[body]]\nsource = \"flag.obj\"\nname = \"flag\"\nmodel = \"plane\"\ncells = 8\nmaterial = \"soft_rubber\"\n\
+                 [[constraint]]\nbody = \"flag\"\nbox = { min = [-0.01, 0.0, -1.0], max = [0.01, 2.0, 1.0] }\n";
+    let (prepared, baked) = bake(dir.path(), scene);
+    // 9 × 6 nodes per sheet (8 cells along x, 5 along y), two sheets; the pole's 12 pinned.
+    assert_eq!(prepared.body_reports()[0].nodes, 108);
+    assert_eq!(prepared.world.constraints[0].nodes.len(), 12);
+    let frames = &baked.meshes[0].frames;
+    let (first, last) = (&frames[0], frames.last().unwrap());
+    // Every spring of the cage within 2× its rest length in every frame.
+    let cage = &prepared.bodies[0].lattice;
+    let mut longest: f64 = 0.0;
+    for nodes in &baked.meshes[0].lattice.as_ref().unwrap().frames {
+        for s in &cage.springs {
+            let (a, b) = (nodes[s.a as usize], nodes[s.b as usize]);
+            let l = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            longest = longest.max(l as f64 / s.rest_length);
+        }
+    }
+    assert!(longest < 2.0, "a spring at {longest} × its rest length");
+    for (v, q) in last.iter().zip(first) {
+        if q[0] < 0.01 {
+            for a in 0..3 {
+                assert!(
+                    (v[a] - q[a]).abs() < 1e-5,
+                    "the pole edge moved: {v:?} vs {q:?}"
+                );
+            }
+        }
+    }
+    // The free edge blows downwind and sags.
+    let tip: Vec<&[f32; 3]> = last
+        .iter()
+        .zip(first)
+        .filter(|(_, q)| q[0] > 0.85)
+        .map(|(v, _)| v)
+        .collect();
+    assert_eq!(tip.len(), 14, "the two last columns of vertices");
+    let z = tip.iter().map(|v| v[2] as f64).sum::<f64>() / tip.len() as f64;
+    println!("flag: longest spring {longest:.3} × rest, tip z {z:.3} m");
+    assert!(z > 0.3, "the tip blew {z} m downwind");
+    assert!(frames
+        .iter()
+        .all(|f| f.iter().all(|v| v.iter().all(|x| x.is_finite()))));
+}
+
+#[test]
+fn a_decimated_cage_bakes_a_falling_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, t) = uv_sphere([0.0, 0.5, 0.0], 0.2, 12, 24);
+    write_obj(&dir.path().join("ball.obj"), &p, &t);
+    let scene = "[output]\npath = \"out.glb\"\nframes = 12\n[world]\nfloor = 0.0\n\
+                 [[body]]\nsource = \"ball.obj\"\nmodel = \"decimated\"\ncage_vertices = 24\nmaterial = \"rubber\"\n";
+    let (prepared, baked) = bake(dir.path(), scene);
+    let nodes = prepared.body_reports()[0].nodes;
+    assert!(
+        (10..=25).contains(&nodes),
+        "{nodes} nodes for cage_vertices = 24"
+    );
+    let f = &baked.meshes[0].frames;
+    let lowest = |f: &Vec<[f32; 3]>| f.iter().map(|v| v[1]).fold(f32::MAX, f32::min);
+    // 11 frames at 24 fps: ½ g t² = 1.03 m of fall, so it reached the floor (0.3 m below).
+    assert!((lowest(&f[0]) - 0.3).abs() < 1e-5);
+    let touch = f.iter().map(lowest).fold(f32::MAX, f32::min);
+    assert!(touch < 0.01 && touch > -0.05, "{touch}");
+    let e = load_and_prepare(
+        dir.path(),
+        &scene.replace("cage_vertices = 24", "cage_vertices = 3"),
+    )
+    .unwrap_err();
+    assert!(e.contains("cage_vertices: must be at least 4"), "{e}");
+}
