@@ -102,10 +102,23 @@ pub fn fit(
     })
 }
 
+/// A body added to the world, with what the host keeps of it.
+#[derive(Debug, Clone)]
+pub struct AddedBody {
+    pub handle: BodyHandle,
+    /// The display mesh in the model.
+    pub embedding: Embedding,
+    /// The lattice, or a cell-less view of the cage, for reports, the viewer and the skin
+    /// cache.
+    pub lattice: Lattice,
+    /// `lattice`, `box`, …, `explicit`.
+    pub model: String,
+    /// [`Cage::note`].
+    pub note: Option<String>,
+}
+
 /// Add one body: the model's nodes and springs, its `[[body.region]]` scales, the display
-/// surface as its contact surface, `kind = "particle"`. Returns the handle, the mesh's
-/// embedding and the lattice (a cell-less view of a cage) the host keeps for reports, the
-/// viewer and the skin cache.
+/// surface as its contact surface, `kind = "particle"`.
 pub fn add_body(
     world: &mut World,
     analysis: Analysis,
@@ -114,7 +127,7 @@ pub fn add_body(
     section: &BodySection,
     points: &[Point3<f64>],
     triangles: &[[u32; 3]],
-) -> Result<(BodyHandle, Embedding, Lattice), String> {
+) -> Result<AddedBody, String> {
     let velocity = Vector3::from(section.velocity);
     let handle = match &analysis {
         Analysis::Lattice(l) => world.add_lattice_body(name, l, material, velocity),
@@ -136,14 +149,14 @@ pub fn add_body(
     }
     // The mesh, not its model, touches the floor, walls and manipulators.
     let (samples, areas) = surface_samples(points, triangles, 0.5 * analysis.spacing());
-    let (embedding, lattice) = match analysis {
+    let (embedding, lattice, model, note) = match analysis {
         Analysis::Lattice(l) => {
             world.add_contact_surface(handle, &l, &samples, &areas);
-            (Embedding::new(&l, points), l)
+            (Embedding::new(&l, points), l, "lattice", None)
         }
         Analysis::Cage(c) => {
             c.add_contact_surface(world, handle, &samples, &areas);
-            (c.embed(points), c.lattice_view())
+            (c.embed(points), c.lattice_view(), c.model, c.note)
         }
     };
     if section.kind == BodyKind::Particle {
@@ -152,7 +165,13 @@ pub fn add_body(
             .ok_or("kind = \"particle\": the body has no mass")?;
         world.rigid.push(particle);
     }
-    Ok((handle, embedding, lattice))
+    Ok(AddedBody {
+        handle,
+        embedding,
+        lattice,
+        model: model.to_string(),
+        note,
+    })
 }
 
 /// Bind the scene's `[[joint]]`s (after every body is in the world).

@@ -25,6 +25,11 @@ pub struct BodyReport {
     pub cell_size: f64,
     pub material: String,
     pub mass_kg: f64,
+    /// The analysis model (`[body] model`).
+    pub model: String,
+    /// Set when the model is not exactly what was asked for (see `springbake_core::cage`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_note: Option<String>,
 }
 
 /// Wall-clock seconds per stage.

@@ -34,6 +34,11 @@ pub struct PreparedBody {
     pub material: Material,
     /// Maps simulation metres back to the mesh's local frame in source units.
     pub local_from_sim: Matrix4<f64>,
+    /// The analysis model (`[body] model`): `lattice`, `box`, …, `explicit`.
+    pub model: String,
+    /// Set when the model is not exactly what was asked for (a decimated cage replaced by
+    /// its convex hull).
+    pub model_note: Option<String>,
 }
 
 /// Everything ready to simulate.
@@ -336,7 +341,13 @@ pub fn prepare(
     for (p, (lattice, material)) in pending.into_iter().zip(fitted) {
         let section = &scene.body[p.body];
         // Model, regions, contact surface, embedding, particle kind (see `models`).
-        let (handle, embedding, lattice) = crate::models::add_body(
+        let crate::models::AddedBody {
+            handle,
+            embedding,
+            lattice,
+            model,
+            note,
+        } = crate::models::add_body(
             &mut world,
             lattice,
             &material,
@@ -379,6 +390,8 @@ pub fn prepare(
             handle,
             material,
             local_from_sim: p.local_from_sim,
+            model,
+            model_note: note,
         });
     }
     // Contact between the bodies and with the `[[collider]]`s (see `colliders`).
@@ -492,10 +505,13 @@ impl Prepared {
                 name: b.name.clone(),
                 nodes: b.lattice.node_count(),
                 springs: b.lattice.springs.len(),
-                cells: b.lattice.cell_count(),
+                // Lattice cells, or a cage's tets.
+                cells: self.world.bodies[b.handle.0].cells.len(),
                 islands: b.lattice.island_count,
                 cell_size: b.lattice.cell_size,
                 material: b.material.name.clone(),
+                model: b.model.clone(),
+                model_note: b.model_note.clone(),
                 mass_kg: self.world.nodes.mass[self.world.bodies[b.handle.0].nodes.clone()]
                     .iter()
                     .sum(),

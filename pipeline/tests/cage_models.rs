@@ -53,7 +53,11 @@ fn a_mesh_baked_in_an_icosahedron_moves_with_its_cage() {
                  [[body]]\nsource = \"ball.obj\"\nmodel = \"icosahedron\"\nmaterial = \"soft_rubber\"\n";
     let (prepared, baked) = bake(dir.path(), scene);
     let report = &prepared.body_reports()[0];
-    assert_eq!((report.nodes, report.springs, report.cells), (13, 42, 0));
+    assert_eq!((report.nodes, report.springs, report.cells), (13, 42, 20));
+    assert_eq!(
+        (report.model.as_str(), report.model_note.as_deref()),
+        ("icosahedron", None)
+    );
     let m = &baked.meshes[0];
     let skin = m.lattice.as_ref().unwrap();
     assert_eq!(skin.rest.len(), 13);
