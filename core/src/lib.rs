@@ -7,8 +7,8 @@
 //! plug-in traits the host queries; [`scene`] the scene-file description.
 
 pub mod bake;
-pub mod collide;
 pub mod cage;
+pub mod collide;
 pub mod display;
 pub mod lattice;
 pub mod material;
