@@ -433,3 +433,184 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
     assert_eq!(one, two);
     assert_eq!(log1, log2);
 }
+
+/// A cube of side 0.2 centred at `centre`, turned 45° about `axis` (0: x, 1: y, 2: z).
+fn turned_cube(centre: [f64; 3], axis: usize) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let (p, t) = box_mesh([-0.1; 3], [0.1; 3]);
+    let (s, c) = std::f64::consts::FRAC_PI_4.sin_cos();
+    let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+    let p = p
+        .iter()
+        .map(|q| {
+            let mut r = *q;
+            r[i] = c * q[i] - s * q[j];
+            r[j] = s * q[i] + c * q[j];
+            Point3::new(r.x + centre[0], r.y + centre[1], r.z + centre[2])
+        })
+        .collect();
+    (p, t)
+}
+
+#[test]
+fn crossed_edges_collide_through_the_edge_edge_test_alone() {
+    // Two cubes meet ridge on ridge, the ridges crossed at right angles (one along z, one
+    // along y), and have no contact samples: only edge–edge contacts can stop them.
+    let m = Material::preset("soft_rubber").unwrap();
+    let ridge = 0.1 * std::f64::consts::SQRT_2;
+    let (pa, ta) = turned_cube([-ridge - 0.05, 0.0, 0.0], 2);
+    let (pb, tb) = turned_cube([ridge + 0.05, 0.0, 0.0], 1);
+    let fit = |p: &[Point3<f64>], t: &[[u32; 3]]| {
+        fit_lattice(
+            p,
+            t,
+            &FitSettings {
+                resolution: Resolution::CellsAlongLongest(4),
+                ..FitSettings::default()
+            },
+        )
+        .unwrap()
+    };
+    let (la, lb) = (fit(&pa, &ta), fit(&pb, &tb));
+    let mut w = World::new(no_gravity(&la, &m));
+    let a = w.add_lattice_body("a", &la, &m, Vector3::new(1.5, 0.0, 0.0));
+    let b = w.add_lattice_body("b", &lb, &m, Vector3::new(-1.5, 0.0, 0.0));
+    w.add_collision_surface(a, &la, &pa, &ta);
+    w.add_collision_surface(b, &lb, &pb, &tb);
+    let (ea, eb) = (Embedding::new(&la, &pa), Embedding::new(&lb, &pb));
+    let before = w.momentum();
+    let mut touched = false;
+    for f in 2..=14 {
+        w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        touched |= w
+            .frame_contacts()
+            .iter()
+            .any(|r| r.partner == ContactPartner::Body(1));
+        let xa: Vec<Vector3<f64>> = ea
+            .points(&w.body_points(a))
+            .iter()
+            .map(|p| p.coords)
+            .collect();
+        let xb: Vec<Vector3<f64>> = eb
+            .points(&w.body_points(b))
+            .iter()
+            .map(|p| p.coords)
+            .collect();
+        // Points along every edge of each mesh stay outside the other: the ridges do not
+        // pass through each other (corners alone would not show it).
+        let along = |x: &[Vector3<f64>], t: &[[u32; 3]]| -> Vec<Vector3<f64>> {
+            let mut out = Vec::new();
+            for tri in t {
+                for e in 0..3 {
+                    let (p, q) = (x[tri[e] as usize], x[tri[(e + 1) % 3] as usize]);
+                    out.extend((0..=20).map(|k| p + (q - p) * (k as f64 / 20.0)));
+                }
+            }
+            out
+        };
+        for q in along(&xa, &ta) {
+            assert!(
+                winding(&q, &xb, &tb) < 0.5,
+                "frame {f}: an edge of a inside b"
+            );
+        }
+        for q in along(&xb, &tb) {
+            assert!(
+                winding(&q, &xa, &ta) < 0.5,
+                "frame {f}: an edge of b inside a"
+            );
+        }
+    }
+    assert!(touched, "the ridges met");
+    let va: f64 = w.body_positions(a).len() as f64;
+    let vx_a = w.bodies[0]
+        .nodes
+        .clone()
+        .map(|i| w.nodes.velocity[i].x)
+        .sum::<f64>()
+        / va;
+    assert!(vx_a < 0.0, "a bounced back: {vx_a} m/s");
+    assert!((w.momentum() - before).norm() < 1e-9 * before.norm().max(1.0));
+}
+
+#[test]
+fn hertz_between_two_rigid_balls_matches_the_closed_form() {
+    // Two equal rubber balls, rigid (only the contact law is compliant), closing at 2 m/s:
+    // spheres R1 = R2 = 0.1 m, eq 3.34 with both bodies' δ. Tolerances as for the ball on the
+    // table (5 %); the peak is the law's n2 α_m^1.5 = 1.25/1.140 F_max.
+    let m = Material::preset("rubber").unwrap();
+    let r = 0.1;
+    let (pa, ta) = uv_sphere([-r - 0.02, 0.0, 0.0], r, 12, 24);
+    let (pb, tb) = uv_sphere([r + 0.02, 0.0, 0.0], r, 12, 24);
+    let fit = |p: &[Point3<f64>], t: &[[u32; 3]]| {
+        fit_lattice(
+            p,
+            t,
+            &FitSettings {
+                resolution: Resolution::CellsAlongLongest(6),
+                ..FitSettings::default()
+            },
+        )
+        .unwrap()
+    };
+    let la = fit(&pa, &ta);
+    let mut w = World::new(no_gravity(&la, &m));
+    w.set_contact_model(ContactModel::Hertz);
+    let (a, _) = add_body(&mut w, "a", &pa, &ta, 6, &m, Vector3::new(1.0, 0.0, 0.0));
+    let (b, _) = add_body(&mut w, "b", &pb, &tb, 6, &m, Vector3::new(-1.0, 0.0, 0.0));
+    w.make_rigid(a.handle).unwrap();
+    w.make_rigid(b.handle).unwrap();
+    let range = w.bodies[0].nodes.clone();
+    let mass: f64 = w.nodes.mass[range.clone()].iter().sum();
+    let springs: Vec<SpringEdge> = w.bodies[0]
+        .springs
+        .clone()
+        .map(|s| SpringEdge {
+            length_m: w.springs.rest_length[s],
+            k_n_per_m: w.springs.stiffness[s],
+        })
+        .collect();
+    let young = young_from_springs(&springs, lattice_spring_area_m2(la.cell_size)).unwrap();
+    let ball = HertzBody::with_default_poisson(mass, young);
+    let hz = HertzImpact::compute(
+        &ball,
+        &ball,
+        &ContactGeometry::Spheres { r1_m: r, r2_m: r },
+        2.0,
+    )
+    .unwrap();
+    let frame_dt = hz.t_max / 100.0;
+    let (mut peak, mut frames, mut impact) = (0.0f64, 0, 0.0f64);
+    for f in 2..=400 {
+        w.advance_frame(frame_dt, f, &|| false).unwrap();
+        let log = w.frame_contacts();
+        if let Some(c) = log.first() {
+            assert_eq!((c.body, c.partner), (0, ContactPartner::Body(1)));
+            assert_eq!(log.len(), 2);
+            // The log's forces on the two bodies are equal and opposite.
+            assert!((log[1].peak_force - c.peak_force).abs() <= 1e-9 * c.peak_force);
+            peak = peak.max(c.peak_force);
+            impact = impact.max(c.impact_speed);
+            frames += 1;
+        }
+    }
+    let law_peak = hz.f_max * 1.25 / 1.140;
+    let duration = frames as f64 * frame_dt;
+    eprintln!(
+        "two balls: peak {peak:.1} N vs {law_peak:.1} N; {duration:.5} s vs {:.5} s",
+        hz.t_max
+    );
+    assert!((impact - 2.0).abs() < 0.02, "impact {impact} m/s");
+    assert!(
+        (peak / law_peak - 1.0).abs() < 0.05,
+        "peak {peak} N vs {law_peak} N"
+    );
+    assert!(
+        (duration / hz.t_max - 1.0).abs() < 0.05,
+        "duration {duration} s vs T_max {} s",
+        hz.t_max
+    );
+    assert!(
+        a.velocity(&w).x < -0.9 && b.velocity(&w).x > 0.9,
+        "elastic rebound"
+    );
+}

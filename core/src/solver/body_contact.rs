@@ -12,7 +12,7 @@
 //!   `x − (v − v_face) Δt`) to its position now; a segment that enters a face from its front
 //!   side is a contact with that face even if the point went deep (no tunnelling within a
 //!   step); otherwise the nearest face within the layer outside the surface, or a face the
-//!   point lies just behind (less than a partner cell deep);
+//!   point lies just behind (at most two layer thicknesses deep);
 //! - edge–edge: mesh edges of one body against the other's, closest points inside both edges,
 //!   direction the normal of the plane through both edges, turned out of the other body.
 //!
@@ -69,8 +69,9 @@ struct BodyMesh {
     nodes: Vec<[u32; 8]>,
     weights: Vec<[f64; 8]>,
     triangles: Vec<[u32; 3]>,
-    /// Unique edges of the display mesh as given (before refinement) `[a, b, c]`: `c` the
-    /// third corner of a triangle holding the edge, so `(a, b, c)` gives its outward normal.
+    /// Unique edges of the display mesh as given (before refinement), longer than the sample
+    /// spacing, `[a, b, c]`: `c` the third corner of a triangle holding the edge, so
+    /// `(a, b, c)` gives its outward normal.
     edges: Vec<[u32; 3]>,
     /// The display triangles as given (for the local radius of curvature).
     display: Vec<[u32; 3]>,
@@ -108,8 +109,13 @@ impl BodyMesh {
     }
 }
 
-/// An edge–edge contact stands for one sample's area: `(L/2)²` over a cell face `L²`.
-const EDGE_SHARE: f64 = 0.25;
+/// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
+/// in the step: deeper, the layer has already failed; the search reaches this far.
+const BEHIND_LAYERS: f64 = 2.0;
+
+/// An edge–edge contact stands for a whole cell face (the layer's stiffness per node): two
+/// crossed edges carry their load at one point, where a face carries it over its samples.
+const EDGE_SHARE: f64 = 1.0;
 
 /// Each body's samples carry half the layer's stiffness against another body: where two faces
 /// meet, both sides' samples push, and together they feel the floor's layer.
@@ -143,6 +149,9 @@ struct Contact {
     relative_velocity: Vector3<f64>,
     /// Sample area over a lattice face (`a`'s cell), for the layer's stiffness per point.
     share: f64,
+    /// The features belong the other way round: `a` to the partner, `b` to the body (the
+    /// partner's samples against the body's faces).
+    flipped: bool,
 }
 
 /// The contact pass's state: meshes, colliders, the model, the force it leaves for the node
@@ -374,8 +383,8 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
             bc.contacts.clear();
             if !apart && has_faces {
-                detect_pair(bc, input, a, b, lo, hi);
-                detect_pair(bc, input, b, a, lo, hi);
+                detect_pair(bc, input, (a, b), false, lo, hi);
+                detect_pair(bc, input, (b, a), true, lo, hi);
                 detect_edges(bc, input, a, b, lo, hi);
             }
             respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
@@ -439,9 +448,19 @@ fn best_face(
     // (segment parameter or distance, hit)
     let mut crossing: Option<(f64, FaceHit)> = None;
     let mut near: Option<(f64, FaceHit)> = None;
+    let reach = h.max(behind);
+    let (qlo, qhi) = (
+        x.inf(&(x - v * dt)).add_scalar(-reach),
+        x.sup(&(x - v * dt)).add_scalar(reach),
+    );
     for &t in candidates {
         let t = t as usize;
         let [a, b, c] = corners(t);
+        // Cheap reject: the triangle's box misses the point's reach (grid cells are coarser).
+        let (tlo, thi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
+        if (0..3).any(|k| tlo[k] > qhi[k] || thi[k] < qlo[k]) {
+            continue;
+        }
         let n = triangle_normal(&a, &b, &c);
         if n == Vector3::zeros() {
             continue;
@@ -507,12 +526,13 @@ struct FaceHit {
     velocity: Vector3<f64>,
 }
 
-/// Vertex–face contacts of body `a`'s samples with body `b`'s triangles inside `[lo, hi]`.
+/// Vertex–face contacts of body `a`'s samples with body `b`'s triangles inside `[lo, hi]`;
+/// `flipped` when `(a, b)` is the pair the response runs for, the other way round.
 fn detect_pair(
     bc: &mut BodyContact,
     input: &PassInput,
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
+    flipped: bool,
     lo: Vector3<f64>,
     hi: Vector3<f64>,
 ) {
@@ -533,17 +553,13 @@ fn detect_pair(
         mesh.triangles.len(),
         (0..mesh.triangles.len()).map(|t| {
             let [p, q, r] = mesh.corners(t);
-            (
-                t as u32,
-                p.inf(&q).inf(&r).add_scalar(-h),
-                p.sup(&q).sup(&r).add_scalar(h),
-            )
+            (t as u32, p.inf(&q).inf(&r), p.sup(&q).sup(&r))
         }),
     );
     if bc.grid.is_empty() {
         return;
     }
-    let behind = mesh.cell;
+    let behind = BEHIND_LAYERS * h;
     let corners = |t: usize| mesh.corners(t);
     let velocity = |t: usize, w: [f64; 3]| {
         let tri = mesh.triangles[t];
@@ -555,7 +571,11 @@ fn detect_pair(
             continue;
         }
         let prev = x - v * dt;
-        let (qlo, qhi) = (x.inf(&prev).add_scalar(-h), x.sup(&prev).add_scalar(h));
+        let reach = h.max(behind);
+        let (qlo, qhi) = (
+            x.inf(&prev).add_scalar(-reach),
+            x.sup(&prev).add_scalar(reach),
+        );
         bc.grid.query(&qlo, &qhi, &mut bc.candidates);
         if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &velocity) {
             bc.contacts.push(Contact {
@@ -569,6 +589,7 @@ fn detect_pair(
                 depth: hit.depth,
                 relative_velocity: v - hit.velocity,
                 share: input.surface.share[i],
+                flipped,
             });
         }
     }
@@ -601,13 +622,13 @@ fn detect_edges(
         eb.edges.len(),
         eb.edges.iter().enumerate().map(|(k, &[i, j, _])| {
             let (p, q) = (eb.x[i as usize], eb.x[j as usize]);
-            (k as u32, p.inf(&q).add_scalar(-h), p.sup(&q).add_scalar(h))
+            (k as u32, p.inf(&q), p.sup(&q))
         }),
     );
     if bc.grid.is_empty() {
         return;
     }
-    let behind = eb.cell.min(ea.cell);
+    let behind = BEHIND_LAYERS * h;
     let parallel = -(30f64.to_radians().cos());
     // One contact per edge of `a`: its nearest qualifying edge of `b`.
     let share = EDGE_SHARE;
@@ -618,8 +639,12 @@ fn detect_edges(
             continue;
         }
         let na = triangle_normal(&p0, &p1, &ea.x[third as usize]);
-        bc.grid
-            .query(&elo.add_scalar(-h), &ehi.add_scalar(h), &mut bc.candidates);
+        let reach = h.max(behind);
+        bc.grid.query(
+            &elo.add_scalar(-reach),
+            &ehi.add_scalar(reach),
+            &mut bc.candidates,
+        );
         let mut best: Option<(f64, Contact)> = None;
         for &k in &bc.candidates {
             let [i0, i1, i2] = eb.edges[k as usize];
@@ -669,6 +694,7 @@ fn detect_edges(
                 depth: h - gap,
                 relative_velocity: va - vb,
                 share,
+                flipped: false,
             };
             if best.as_ref().is_none_or(|(g, _)| gap < *g) {
                 best = Some((gap, contact));
@@ -690,7 +716,7 @@ fn detect_collider(
     hi: Vector3<f64>,
 ) {
     let (h, dt) = (input.layer.thickness_m, input.dt);
-    let behind = bc.mesh_of[a].map(|m| bc.meshes[m].cell).unwrap_or(4.0 * h);
+    let behind = BEHIND_LAYERS * h;
     let col = &mut bc.colliders[c];
     for i in bc.points[a].clone() {
         let (x, v) = sample(input.surface, input.nodes, i);
@@ -698,9 +724,10 @@ fn detect_collider(
             continue;
         }
         let prev = x - v * dt;
+        let reach = h.max(behind);
         col.grid.query(
-            &x.inf(&prev).add_scalar(-h),
-            &x.sup(&prev).add_scalar(h),
+            &x.inf(&prev).add_scalar(-reach),
+            &x.sup(&prev).add_scalar(reach),
             &mut bc.candidates,
         );
         let col = &*col;
@@ -714,6 +741,7 @@ fn detect_collider(
                 depth: hit.depth,
                 relative_velocity: v,
                 share: input.surface.share[i],
+                flipped: false,
             });
         }
     }
@@ -846,9 +874,15 @@ fn respond(
         );
         apply(&mut bc.force, &bc.meshes, input.surface, c.a, f);
         apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
-        log.add(a, partner, f, c.normal);
+        // f acts on feature a: on the body unless the features are flipped.
+        let (f_body, n_body) = if c.flipped {
+            (-f, -c.normal)
+        } else {
+            (f, c.normal)
+        };
+        log.add(a, partner, f_body, n_body);
         if let Some(b) = b {
-            log.add(b, ContactPartner::Body(a), -f, -c.normal);
+            log.add(b, ContactPartner::Body(a), -f_body, -n_body);
         }
     }
 }
@@ -1093,10 +1127,13 @@ impl World {
         // Display edges (refinement keeps the corners' indices).
         let mut seen = std::collections::BTreeSet::new();
         let mut edges = Vec::new();
+        // Edges shorter than the sample spacing (half a node spacing) are covered by the samples'
+        // vertex–face contacts; only longer ones take part in edge–edge tests.
         for t in &display {
             for e in 0..3 {
                 let (i, j, k) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
-                if seen.insert((i.min(j), i.max(j))) {
+                let long = (positions[i as usize] - positions[j as usize]).norm() > 0.5 * spacing;
+                if long && seen.insert((i.min(j), i.max(j))) {
                     edges.push([i, j, k]);
                 }
             }
