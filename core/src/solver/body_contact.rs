@@ -12,7 +12,7 @@
 //!   `x − (v − v_face) Δt`) to its position now; a segment that enters a face from its front
 //!   side is a contact with that face even if the point went deep (no tunnelling within a
 //!   step); otherwise the nearest face within the layer outside the surface, or a face the
-//!   point lies just behind (at most two layer thicknesses deep);
+//!   point lies just behind (at most a layer thickness deep);
 //! - edge–edge: mesh edges of one body against the other's, closest points inside both edges,
 //!   direction the normal of the plane through both edges, turned out of the other body.
 //!
@@ -69,7 +69,7 @@ struct BodyMesh {
     nodes: Vec<[u32; 8]>,
     weights: Vec<[f64; 8]>,
     triangles: Vec<[u32; 3]>,
-    /// Unique edges of the display mesh as given (before refinement), longer than the sample
+    /// Unique edges of the display mesh as given (before refinement), longer than a node
     /// spacing, `[a, b, c]`: `c` the third corner of a triangle holding the edge, so
     /// `(a, b, c)` gives its outward normal.
     edges: Vec<[u32; 3]>,
@@ -111,7 +111,7 @@ impl BodyMesh {
 
 /// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
 /// in the step: deeper, the layer has already failed; the search reaches this far.
-const BEHIND_LAYERS: f64 = 2.0;
+const BEHIND_LAYERS: f64 = 1.0;
 
 /// An edge–edge contact stands for a whole cell face (the layer's stiffness per node): two
 /// crossed edges carry their load at one point, where a face carries it over its samples.
@@ -1127,12 +1127,14 @@ impl World {
         // Display edges (refinement keeps the corners' indices).
         let mut seen = std::collections::BTreeSet::new();
         let mut edges = Vec::new();
-        // Edges shorter than the sample spacing (half a node spacing) are covered by the samples'
-        // vertex–face contacts; only longer ones take part in edge–edge tests.
+        // Samples are at most a node spacing apart along any edge (a triangle up to twice the
+        // sample spacing keeps its corners as samples), so an edge crossing a shorter edge
+        // passes within half a spacing of a sample, inside the layer: only longer edges take
+        // part in edge–edge tests.
         for t in &display {
             for e in 0..3 {
                 let (i, j, k) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
-                let long = (positions[i as usize] - positions[j as usize]).norm() > 0.5 * spacing;
+                let long = (positions[i as usize] - positions[j as usize]).norm() > spacing;
                 if long && seen.insert((i.min(j), i.max(j))) {
                     edges.push([i, j, k]);
                 }
