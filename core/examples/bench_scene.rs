@@ -7,30 +7,36 @@
 //! `--json` prints one JSON line last (for scripts/bench.sh); `--quick` skips 64³ and the
 //! frame-time sweep; `--standard` runs only the standard scene; `--trace` runs only the standard scene and prints each frame's diagnostics.
 
-use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution};
+use springbake_core::lattice::{
+    fit_lattice, surface_samples, FitSettings, Resolution, SpringLayout,
+};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{Plane, World, WorldSettings};
 use std::time::Instant;
 
-/// A `cells`-per-side lattice of a 1 m cube whose bottom is at `bottom` metres.
-fn cube(cells: u32, bottom: f64) -> Lattice {
+/// A rubber 1 m cube, `cells` per side, whose bottom is at `bottom` metres, resting above the
+/// floor: with the Table 1 spring layout and node contact (`product = false`, the step
+/// benchmarks), or set up as `springbake bake` sets up a mesh (`product = true`: the scene
+/// default layout with body diagonals, contact on the display surface sampled at half a cell).
+fn cube_world(cells: u32, bottom: f64, product: bool) -> World {
     let (p, t) = box_mesh([0.0, bottom, 0.0], [1.0, bottom + 1.0, 1.0]);
-    fit_lattice(
+    let layout = if product {
+        SpringLayout::Both
+    } else {
+        SpringLayout::FaceDiagonals
+    };
+    let lattice = fit_lattice(
         &p,
         &t,
         &FitSettings {
             resolution: Resolution::CellsAlongLongest(cells),
+            layout,
             ..FitSettings::default()
         },
     )
-    .expect("a box always fits")
-}
-
-/// A rubber cube resting just above the floor (the benchmark state for a single step).
-fn world(cells: u32, bottom: f64) -> World {
-    let lattice = cube(cells, bottom);
+    .expect("a box always fits");
     let m = Material::preset("rubber").expect("preset");
     let layer = WorldSettings::default_layer(lattice.cell_size, &m, 0.4);
     let mut w = World::new(WorldSettings {
@@ -41,8 +47,17 @@ fn world(cells: u32, bottom: f64) -> World {
         layer,
         ..WorldSettings::default()
     });
-    w.add_lattice_body("cube", &lattice, &m, Vector3::zeros());
+    let body = w.add_lattice_body("cube", &lattice, &m, Vector3::zeros());
+    if product {
+        let (samples, areas) = surface_samples(&p, &t, 0.5 * lattice.cell_size);
+        w.add_contact_surface(body, &lattice, &samples, &areas);
+    }
     w
+}
+
+/// The step-benchmark state: a Table 1 cube (see [`cube_world`]).
+fn world(cells: u32, bottom: f64) -> World {
+    cube_world(cells, bottom, false)
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
@@ -108,10 +123,11 @@ struct Standard {
     nodes: usize,
 }
 
-/// The standard scene: 15 cells per side (16³ nodes), bottom at 1 m, 100 frames at 24 fps.
+/// The standard scene: 15 cells per side (16³ nodes), bottom at 1 m, 100 frames at 24 fps,
+/// set up as the product sets up a mesh (see [`cube_world`]).
 fn standard(threads: usize, trace: bool) -> Standard {
     pool(threads).install(|| {
-        let mut w = world(15, 1.0);
+        let mut w = cube_world(15, 1.0, true);
         let layer = w.settings.layer.thickness_m;
         let t0 = Instant::now();
         let mut inverted_max = 0;
