@@ -12,7 +12,7 @@ if [ ! -x "$PY" ]; then
 fi
 echo "load average: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
 cargo build --release -p springbake-core --example bench_scene || exit 2
-BIN=target/release/examples/bench_scene
+BIN="${CARGO_TARGET_DIR:-target}/release/examples/bench_scene"
 if [ "${1:-}" = "--full" ]; then
     "$BIN"
 fi
