@@ -50,6 +50,16 @@ pub fn fit(
             }
         }
     }
+    if section.cell_size.is_some() && section.model != ModelKind::Lattice {
+        return Err("cell_size: only for model = \"lattice\" (a cage is sized to the mesh)".into());
+    }
+    if section.cells.is_some() && !matches!(section.model, ModelKind::Lattice | ModelKind::Plane) {
+        return Err(
+            "cells: only for model = \"lattice\" or \"plane\" (other cages have a fixed shape; \
+             use cage_vertices with model = \"decimated\")"
+                .into(),
+        );
+    }
     if section.cage_vertices.is_some() && section.model != ModelKind::Decimated {
         return Err("cage_vertices: only for model = \"decimated\"".into());
     }

@@ -177,6 +177,14 @@ fn explicit_models_bake_and_their_errors_name_the_field() {
             head.replace("explicit", "box") + nodes,
             "nodes: only for model = \"explicit\"",
         ),
+        (
+            head.replace("explicit", "icosahedron") + "cells = 8\n",
+            "cells: only for model = \"lattice\" or \"plane\"",
+        ),
+        (
+            head.replace("explicit", "box") + "cell_size = 0.1\n",
+            "cell_size: only for model = \"lattice\"",
+        ),
     ] {
         let e = load_and_prepare(dir.path(), &text).unwrap_err();
         assert!(e.contains(field) && e.contains("body 0"), "{e}");
