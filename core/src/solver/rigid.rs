@@ -17,6 +17,26 @@ use super::NodeState;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use std::ops::Range;
 
+/// Total mass, centre of mass and centre-of-mass velocity of the nodes `range`; `None` when
+/// they are empty, have no mass or include a pinned node.
+fn mass_centre_velocity(
+    nodes: &NodeState,
+    range: Range<usize>,
+) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
+    let mass: f64 = nodes.mass[range.clone()].iter().sum();
+    if range.is_empty() || mass <= 0.0 || nodes.inv_mass[range.clone()].contains(&0.0) {
+        return None;
+    }
+    let weighted = |x: &[Vector3<f64>]| {
+        range
+            .clone()
+            .map(|i| x[i] * nodes.mass[i])
+            .sum::<Vector3<f64>>()
+            / mass
+    };
+    Some((mass, weighted(&nodes.position), weighted(&nodes.velocity)))
+}
+
 /// The floating frame of one rigid body.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RigidBody {
@@ -42,20 +62,7 @@ impl RigidBody {
     /// `None` when the nodes have no mass or no rotational inertia in some direction (fewer
     /// than three non-collinear massive nodes).
     pub fn from_nodes(body: usize, nodes: &NodeState, range: Range<usize>) -> Option<RigidBody> {
-        let mass: f64 = nodes.mass[range.clone()].iter().sum();
-        if mass <= 0.0 || nodes.inv_mass[range.clone()].contains(&0.0) {
-            return None;
-        }
-        let centre = range
-            .clone()
-            .map(|i| nodes.position[i] * nodes.mass[i])
-            .sum::<Vector3<f64>>()
-            / mass;
-        let velocity = range
-            .clone()
-            .map(|i| nodes.velocity[i] * nodes.mass[i])
-            .sum::<Vector3<f64>>()
-            / mass;
+        let (mass, centre, velocity) = mass_centre_velocity(nodes, range.clone())?;
         let mut inertia = Matrix3::zeros();
         let mut angular_momentum = Vector3::zeros();
         let local: Vec<Vector3<f64>> = range
@@ -91,20 +98,7 @@ impl RigidBody {
         range: Range<usize>,
         gravity: Vector3<f64>,
     ) -> Option<RigidBody> {
-        let mass: f64 = nodes.mass[range.clone()].iter().sum();
-        if range.is_empty() || mass <= 0.0 || nodes.inv_mass[range.clone()].contains(&0.0) {
-            return None;
-        }
-        let centre = range
-            .clone()
-            .map(|i| nodes.position[i] * nodes.mass[i])
-            .sum::<Vector3<f64>>()
-            / mass;
-        let velocity = range
-            .clone()
-            .map(|i| nodes.velocity[i] * nodes.mass[i])
-            .sum::<Vector3<f64>>()
-            / mass;
+        let (mass, centre, velocity) = mass_centre_velocity(nodes, range.clone())?;
         Some(RigidBody {
             body,
             local: range.map(|i| nodes.position[i] - centre).collect(),
