@@ -199,20 +199,7 @@ pub fn add_joints(
             )));
         }
         let find = |name: &str| {
-            bodies
-                .iter()
-                .find(|(section, mesh, _)| section.as_deref() == Some(name) || mesh == name)
-                .map(|b| b.2)
-                .ok_or_else(|| {
-                    let names: Vec<&str> = bodies
-                        .iter()
-                        .map(|b| b.0.as_deref().unwrap_or(b.1.as_str()))
-                        .collect();
-                    err(format!(
-                        "bodies: no body named \"{name}\"; bodies: {}",
-                        names.join(", ")
-                    ))
-                })
+            crate::simulate::find_body(bodies, name).map_err(|e| err(format!("bodies: {e}")))
         };
         let (a, b) = (find(&j.bodies[0])?, find(&j.bodies[1])?);
         if !j.at.iter().all(|x| x.is_finite()) {

@@ -417,6 +417,25 @@ pub fn prepare(
     })
 }
 
+/// The body a scene names (its `name`, or its mesh's name when it has none), or a message
+/// listing the bodies there are.
+pub(crate) fn find_body(
+    bodies: &[(Option<String>, String, BodyHandle)],
+    name: &str,
+) -> Result<BodyHandle, String> {
+    bodies
+        .iter()
+        .find(|(section, mesh, _)| section.as_deref() == Some(name) || mesh == name)
+        .map(|b| b.2)
+        .ok_or_else(|| {
+            let names: Vec<&str> = bodies
+                .iter()
+                .map(|b| b.0.as_deref().unwrap_or(b.1.as_str()))
+                .collect();
+            format!("no body named \"{name}\"; bodies: {}", names.join(", "))
+        })
+}
+
 /// Bind the scene's `[[constraint]]`s: nodes chosen by box, nearest point or index follow
 /// their keyframes (or stay pinned), exactly or loosely (Terasawa eq 3.1).
 fn add_constraints(
@@ -426,23 +445,7 @@ fn add_constraints(
 ) -> Result<(), PipelineError> {
     for (i, c) in scene.constraint.iter().enumerate() {
         let err = |message: String| PipelineError::Usage(format!("constraint[{i}]: {message}"));
-        let handle = bodies
-            .iter()
-            .find(|(section_name, mesh_name, _)| {
-                section_name.as_deref() == Some(c.body.as_str()) || *mesh_name == c.body
-            })
-            .map(|b| b.2)
-            .ok_or_else(|| {
-                let names: Vec<&str> = bodies
-                    .iter()
-                    .map(|b| b.0.as_deref().unwrap_or(b.1.as_str()))
-                    .collect();
-                err(format!(
-                    "no body named \"{}\"; bodies: {}",
-                    c.body,
-                    names.join(", ")
-                ))
-            })?;
+        let handle = find_body(bodies, &c.body).map_err(&err)?;
         let range = world.bodies[handle.0].nodes.clone();
         let positions = &world.nodes.position[range.clone()];
         let local: Vec<usize> = if let Some(r) = &c.region {
