@@ -8,7 +8,7 @@ use springbake_core::lattice::{fit_lattice, surface_samples, Embedding, FitSetti
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::scene::{BodyKind, BodySection, ModelKind, SceneFile, SpringsSpec};
-use springbake_core::solver::joints::join_bodies_at;
+use springbake_core::solver::joints::{join_bodies_at, JointError};
 use springbake_core::solver::regions::{apply_region, Region};
 use springbake_core::solver::{BodyHandle, RigidBody, World};
 
@@ -205,7 +205,20 @@ pub fn add_joints(
         if !j.at.iter().all(|x| x.is_finite()) {
             return Err(err("at: coordinates must be finite".into()));
         }
-        join_bodies_at(world, a, b, Vector3::from(j.at)).map_err(|e| err(e.to_string()))?;
+        join_bodies_at(world, a, b, Vector3::from(j.at)).map_err(|e| match e {
+            // Name the body as the scene does.
+            JointError::TooFar {
+                which,
+                distance_m,
+                reach_m,
+                ..
+            } => err(format!(
+                "at: body \"{}\"'s nearest node is {distance_m:.3} m away, farther than its \
+                 longest spring there ({reach_m:.3} m): put `at` where the two bodies meet",
+                j.bodies[which]
+            )),
+            e => err(e.to_string()),
+        })?;
     }
     Ok(())
 }

@@ -266,6 +266,13 @@ fn two_linked_bars_pulled_at_one_end_drag_each_other() {
         e.contains("joint[0]: bodies: no body named \"lowr\""),
         "{e}"
     );
+    // A joint point away from the bodies is refused (it would tie two far nodes together).
+    let far = scene.replace("at = [0.4, 1.05, 0.05]", "at = [0.4, 2.0, 0.05]");
+    let e = load_and_prepare(dir.path(), &far).unwrap_err();
+    assert!(
+        e.contains("joint[0]") && e.contains("farther than") && e.contains("\"upper\""),
+        "{e}"
+    );
 }
 
 #[test]

@@ -11,6 +11,9 @@
 //! Joined bodies do not collide with each other (their body–body contact is skipped: the
 //! links overlap at the joint); they still touch everything else.
 //!
+//! The joint point must lie within a spring's length of each body's nearest node (inside or
+//! on both bodies), or the joint is refused ([`JointError::TooFar`]).
+//!
 //! What this costs: B's volume correction (if any) cannot move `j` (it has no mass) and does
 //! not reach `i`; a rigid or particle body cannot take part (its frame would ignore the
 //! springs of the other body), so joining one is refused.
@@ -40,6 +43,17 @@ pub enum JointError {
     Connected,
     #[error("the joint's nodes are already the same node")]
     AlreadyShared,
+    #[error(
+        "body \"{body}\"'s nearest node is {distance_m:.3} m from the joint point, farther than \
+         its longest spring there ({reach_m:.3} m): put `at` where the two bodies meet"
+    )]
+    TooFar {
+        body: String,
+        /// 0 for the first body of the joint, 1 for the second.
+        which: usize,
+        distance_m: f64,
+        reach_m: f64,
+    },
 }
 
 /// The node of `body` nearest to `at` (first on ties), world index.
@@ -69,6 +83,23 @@ pub fn join_bodies_at(
     }
     let i = nearest_body_node(world, a, at).ok_or(JointError::NoBody(a.0))?;
     let j = nearest_body_node(world, b, at).ok_or(JointError::NoBody(b.0))?;
+    // A point inside or on a body lies within a spring's length of its nearest node.
+    for (which, (h, n)) in [(a, i), (b, j)].into_iter().enumerate() {
+        let distance_m = (world.nodes.position[n] - at).norm();
+        let s = &world.springs;
+        let reach_m = (0..s.len())
+            .filter(|&k| s.a[k] as usize == n || s.b[k] as usize == n)
+            .map(|k| s.rest_length[k])
+            .fold(0.0, f64::max);
+        if distance_m > reach_m {
+            return Err(JointError::TooFar {
+                body: world.bodies[h.0].name.clone(),
+                which,
+                distance_m,
+                reach_m,
+            });
+        }
+    }
     let shared = join_nodes(world, i, j)?;
     // Linked parts overlap at the joint: they do not collide with each other.
     let pair = (a.0.min(b.0), a.0.max(b.0));
