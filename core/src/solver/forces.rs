@@ -95,10 +95,11 @@ fn chunk_forces(
             *f = Vector3::zeros();
             continue;
         }
-        let u = r / len;
+        // One division per spring (`r / len` would divide each component).
+        let inv_len = 1.0 / len;
         let stretch = len - rest[j];
-        let closing = (vel[a] - vel[b]).dot(&u);
-        *f = -(k[j] * stretch + d[j] * closing) * u;
+        let closing = (vel[a] - vel[b]).dot(&r) * inv_len;
+        *f = r * (-(k[j] * stretch + d[j] * closing) * inv_len);
     }
     min_floor
 }
