@@ -146,15 +146,9 @@ pub fn plane(points: &[Point3<f64>], cells: u32) -> Result<Cage, CageError> {
             }
         }
     }
-    // Kuhn's 6 tets around the 0–7 diagonal of every cell (corner bits: 1 = u, 2 = v, 4 = n).
-    const KUHN: [[usize; 4]; 6] = [
-        [0, 1, 3, 7],
-        [0, 3, 2, 7],
-        [0, 2, 6, 7],
-        [0, 6, 4, 7],
-        [0, 4, 5, 7],
-        [0, 5, 1, 7],
-    ];
+    // Kuhn's 6 tets around the 0–7 diagonal of every cell (corner bits: 1 = u, 2 = v, 4 = n),
+    // the split volume preservation uses.
+    use crate::solver::volume::TETS as KUHN;
     let mut tets = Vec::with_capacity(6 * nu * nv);
     for j in 0..nv {
         for i in 0..nu {

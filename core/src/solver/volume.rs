@@ -16,9 +16,9 @@
 use super::NodeState;
 use nalgebra::Vector3;
 
-/// The six tetrahedra of a cell (corner bit 1 = +x, 2 = +y, 4 = +z), all positively oriented
-/// for an unrotated cell, sharing the 0–7 diagonal.
-const TETS: [[usize; 4]; 6] = [
+/// The six tetrahedra of a cell (Kuhn's split; corner bit 1 = +x, 2 = +y, 4 = +z), all
+/// positively oriented for an unrotated cell, sharing the 0–7 diagonal.
+pub(crate) const TETS: [[usize; 4]; 6] = [
     [0, 1, 3, 7],
     [0, 3, 2, 7],
     [0, 2, 6, 7],
