@@ -15,7 +15,7 @@ use eframe::egui;
 use springbake_core::material::{Material, PRESETS};
 use springbake_core::nalgebra::Vector3;
 use springbake_core::plugin::Registry;
-use springbake_core::scene::{CustomMaterial, MaterialSpec};
+use springbake_core::scene::{CustomMaterial, MaterialSpec, ModelKind};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -105,7 +105,9 @@ fn params_of(sim: &Simulation) -> Params {
         .prepared
         .bodies
         .first()
-        .map_or(10, |b| b.lattice.dims.iter().copied().max().unwrap_or(10));
+        .and_then(|b| b.lattice.dims.iter().copied().max())
+        .filter(|&n| n > 0)
+        .unwrap_or(10);
     let preset = match &body.material {
         MaterialSpec::Preset(p) => Material::preset(p)
             .map(|m| m.name)
@@ -250,8 +252,12 @@ impl ViewerApp {
                                 damping: Some(p.damping),
                             });
                         }
-                        body.cells = Some(p.cells);
-                        body.cell_size = None;
+                        // Only lattices and plane slabs have a cell count (other cage
+                        // models refuse `cells`).
+                        if matches!(body.model, ModelKind::Lattice | ModelKind::Plane) {
+                            body.cells = Some(p.cells);
+                            body.cell_size = None;
+                        }
                     }
                     Ok(ViewSource::Simulated(Box::new(Simulation::new(
                         &self.registry,
