@@ -430,6 +430,29 @@ fn inside(p: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
 }
 
+/// `[x, v, box min, box max]`: contact sample `i`'s position and velocity when it lies in
+/// `[lo, hi]`, and the box its segment from the previous position sweeps, grown by `reach`
+/// (the grid query box).
+fn swept_sample(
+    input: &PassInput,
+    i: usize,
+    lo: &Vector3<f64>,
+    hi: &Vector3<f64>,
+    reach: f64,
+) -> Option<[Vector3<f64>; 4]> {
+    let (x, v) = sample(input.surface, input.nodes, i);
+    if !inside(&x, lo, hi) {
+        return None;
+    }
+    let prev = x - v * input.dt;
+    Some([
+        x,
+        v,
+        x.inf(&prev).add_scalar(-reach),
+        x.sup(&prev).add_scalar(reach),
+    ])
+}
+
 /// The best face contact of a point at `x` moving at `v` against triangles `candidates` with
 /// corners from `corners(t)`, velocities `vel(t)` (at barycentric weights) and normals: a
 /// crossing of the segment from the previous position first, else the nearest face within the
@@ -566,16 +589,9 @@ fn detect_pair(
         (0..3).map(|k| mesh.v[tri[k] as usize] * w[k]).sum()
     };
     for i in bc.points[a].clone() {
-        let (x, v) = sample(input.surface, input.nodes, i);
-        if !inside(&x, &lo, &hi) {
+        let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
             continue;
-        }
-        let prev = x - v * dt;
-        let reach = h.max(behind);
-        let (qlo, qhi) = (
-            x.inf(&prev).add_scalar(-reach),
-            x.sup(&prev).add_scalar(reach),
-        );
+        };
         bc.grid.query(&qlo, &qhi, &mut bc.candidates);
         if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &velocity) {
             bc.contacts.push(Contact {
@@ -719,17 +735,10 @@ fn detect_collider(
     let behind = BEHIND_LAYERS * h;
     let col = &mut bc.colliders[c];
     for i in bc.points[a].clone() {
-        let (x, v) = sample(input.surface, input.nodes, i);
-        if !inside(&x, &lo, &hi) {
+        let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
             continue;
-        }
-        let prev = x - v * dt;
-        let reach = h.max(behind);
-        col.grid.query(
-            &x.inf(&prev).add_scalar(-reach),
-            &x.sup(&prev).add_scalar(reach),
-            &mut bc.candidates,
-        );
+        };
+        col.grid.query(&qlo, &qhi, &mut bc.candidates);
         let col = &*col;
         let corners = |t: usize| col.corners(t);
         let still = |_: usize, _: [f64; 3]| Vector3::zeros();
