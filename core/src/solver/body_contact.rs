@@ -253,8 +253,7 @@ pub(crate) struct PassInput<'a> {
 
 /// One step's contacts for the log and the node pass: sizes and begins the log's step, logs
 /// the rigid-surface contacts (see [`super::contact_log`]), runs [`contact_pass`], ends the
-/// log's step. `depths`: the surface contact pass's deepest penetration per point, if it ran.
-#[allow(clippy::too_many_arguments)]
+/// log's step (what the step's own passes already found comes in `scene`).
 pub(crate) fn step_contacts(
     bc: &mut BodyContact,
     log: &mut ContactLog,
@@ -263,7 +262,6 @@ pub(crate) fn step_contacts(
     nodes: &NodeState,
     node_contact: &[bool],
     bodies: &[BodyInfo],
-    depths: Option<&dyn Fn(usize) -> f64>,
 ) {
     log.ensure(bodies.len(), scene.capsules.len(), bc.colliders.len());
     log.begin_step();
@@ -275,7 +273,6 @@ pub(crate) fn step_contacts(
         &nodes.velocity,
         node_contact,
         bodies,
-        depths,
     );
     let input = PassInput {
         nodes,
@@ -322,6 +319,8 @@ pub(crate) fn step_contacts_of(world: &mut World, dt: f64) {
         up: world.settings.up,
         dt,
         lead: dt,
+        points: None,
+        node_blocks: None,
     };
     step_contacts(
         &mut world.body_contact,
@@ -331,7 +330,6 @@ pub(crate) fn step_contacts_of(world: &mut World, dt: f64) {
         &world.nodes,
         &world.node_contact,
         &world.bodies,
-        None,
     );
     world.contact_log.capsules_scratch = caps;
 }

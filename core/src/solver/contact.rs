@@ -57,8 +57,57 @@ pub(crate) fn layer_force(
     f
 }
 
+/// Nodes per block of the rigid broad phase (see [`box_may_touch`]).
+pub(crate) const CONTACT_BLOCK: usize = 64;
+
+/// The axis-aligned box `(lo, hi)` of the positions `xs`; NaN coordinates are left out (a
+/// NaN position touches nothing), and no positions give an empty box (`lo > hi`).
+pub(crate) fn bounding_box(xs: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for x in xs {
+        for k in 0..3 {
+            lo[k] = lo[k].min(x[k]);
+            hi[k] = hi[k].max(x[k]);
+        }
+    }
+    (Vector3::from(lo), Vector3::from(hi))
+}
+
+/// Whether a point in the box `lo..=hi` may touch a plane or a capsule: `false` only when
+/// [`node_contacts`] finds no contact for any point in the box, bit for bit. A plane: the
+/// box corner lowest along its normal (the dot product is monotone in each coordinate, also
+/// rounded, so no point in the box lies lower) is not below the offset. A capsule: the box is
+/// apart from the axis segment's box grown by the radius and a rounding margin. NaN anywhere
+/// counts as touching; an empty box touches nothing.
+pub(crate) fn box_may_touch(
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+    planes: &[Plane],
+    capsules: &[Capsule],
+) -> bool {
+    if !(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z) {
+        return false;
+    }
+    let pick = |n: f64, k: usize| if n >= 0.0 { lo[k] } else { hi[k] };
+    let near_plane = planes.iter().any(|p| {
+        let n = p.normal;
+        let lowest = Vector3::new(pick(n.x, 0), pick(n.y, 1), pick(n.z, 2));
+        let d = n.dot(&lowest);
+        d < p.offset || d.is_nan() || p.offset.is_nan()
+    });
+    near_plane
+        || capsules.iter().any(|c| {
+            let (a, e) = c.endpoints();
+            let reach = c.radius + 1e-9 * (1.0 + c.radius + a.amax() + e.amax());
+            let apart =
+                (0..3).any(|k| a[k].min(e[k]) - reach > hi[k] || a[k].max(e[k]) + reach < lo[k]);
+            !apart
+        })
+}
+
 /// The contact of one node with every rigid surface: total force, deepest penetration and
 /// the force from the manipulators alone (for their reaction).
+#[inline]
 pub(crate) fn node_contacts(
     layer: &ContactLayer,
     planes: &[Plane],
@@ -141,6 +190,75 @@ mod tests {
             1e-3,
         );
         assert!((slow.x + 0.5).abs() < 1e-12, "{}", slow.x);
+    }
+
+    /// The broad phase may only skip a box in which no point has a contact: points on a
+    /// lattice (corners, faces, interior) of many boxes around tilted planes and a slanted
+    /// capsule, at and just beside the surfaces; and it does skip boxes clearly apart.
+    #[test]
+    fn box_test_never_skips_a_touching_point() {
+        let planes = [
+            Plane {
+                normal: Vector3::y(),
+                offset: 0.0,
+            },
+            Plane {
+                normal: Vector3::new(0.3, -0.2, 0.9).normalize(),
+                offset: 0.1,
+            },
+        ];
+        let capsules = [Capsule {
+            centre: Vector3::new(0.2, 0.5, -0.1),
+            axis: Vector3::new(1.0, 0.4, -0.3).normalize(),
+            length: 0.6,
+            radius: 0.15,
+            velocity: Vector3::zeros(),
+            friction: 0.0,
+        }];
+        let (mut touching_boxes, mut skipped) = (0, 0);
+        for bi in 0..12 {
+            for bj in 0..12 {
+                for bk in 0..12 {
+                    // Boxes of width 0.1 over [-0.6, 0.6]³, offset by 1/3 of a width so that
+                    // faces fall near the surfaces at odd values.
+                    let lo = Vector3::new(bi as f64, bj as f64, bk as f64) * 0.1
+                        - Vector3::repeat(0.6 - 0.1 / 3.0);
+                    let hi = lo + Vector3::new(0.1, 0.07, 0.13);
+                    let xs: Vec<Vector3<f64>> = (0..125)
+                        .map(|s| {
+                            let t = Vector3::new(
+                                (s % 5) as f64 / 4.0,
+                                (s / 5 % 5) as f64 / 4.0,
+                                (s / 25) as f64 / 4.0,
+                            );
+                            lo + (hi - lo).component_mul(&t)
+                        })
+                        .collect();
+                    let (blo, bhi) = bounding_box(&xs);
+                    let near = box_may_touch(blo, bhi, &planes, &capsules);
+                    let l = layer();
+                    let touches = xs.iter().any(|&x| {
+                        let (_, depth, _) =
+                            node_contacts(&l, &planes, &capsules, x, Vector3::zeros(), 1.0, 1e-3);
+                        depth > 0.0
+                    });
+                    assert!(near || !touches, "box {blo:?}..{bhi:?} skipped but touches");
+                    touching_boxes += touches as usize;
+                    skipped += !near as usize;
+                }
+            }
+        }
+        assert!(touching_boxes > 100, "{touching_boxes}");
+        assert!(skipped > 200, "the test must skip boxes apart: {skipped}");
+        // An empty box (no positions) touches nothing; NaN counts as touching.
+        let (lo, hi) = bounding_box(&[]);
+        assert!(!box_may_touch(lo, hi, &planes, &capsules));
+        let nan_plane = Plane {
+            normal: Vector3::y(),
+            offset: f64::NAN,
+        };
+        let (lo, hi) = (Vector3::repeat(1.0), Vector3::repeat(2.0));
+        assert!(box_may_touch(lo, hi, &[nan_plane], &[]));
     }
 
     #[test]

@@ -17,11 +17,12 @@
 //!
 //! [`World::advance_frame`]: super::World::advance_frame
 
-use super::contact::{node_contacts, ContactLayer, Plane};
+use super::contact::{node_contacts, ContactLayer, Plane, CONTACT_BLOCK};
 use super::manipulator::Capsule;
 use super::world::{BodyInfo, SurfacePoints};
 use super::NodeState;
 use nalgebra::Vector3;
+use std::ops::Range;
 
 /// What a body touched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -217,6 +218,19 @@ pub(crate) fn is_floor(plane: &Plane, up: &Vector3<f64>) -> bool {
     plane.normal.dot(up) > 25f64.to_radians().cos()
 }
 
+/// The partner a plane is: the floor or a wall.
+fn plane_partner(plane: &Plane, up: &Vector3<f64>) -> ContactPartner {
+    if is_floor(plane, up) {
+        ContactPartner::Floor
+    } else {
+        ContactPartner::Wall
+    }
+}
+
+/// One display-surface point's contact in a step: force, deepest penetration, force from the
+/// manipulators.
+pub(crate) type PointContact = (Vector3<f64>, f64, Vector3<f64>);
+
 /// What the rigid-surface contacts need from the world, borrowed for one observation.
 pub(crate) struct RigidScene<'a> {
     pub layer: &'a ContactLayer,
@@ -228,6 +242,13 @@ pub(crate) struct RigidScene<'a> {
     /// step's starting positions), `dt` for Newmark-β (its contacts take predicted positions,
     /// so they act a step before the starting position reaches a surface).
     pub lead: f64,
+    /// The step's surface contact pass, if it ran at the observed state: per display-surface
+    /// point, its (force, deepest penetration, force from the manipulators). Only the points
+    /// it found touching are looked at again.
+    pub points: Option<&'a [PointContact]>,
+    /// Per block of [`CONTACT_BLOCK`] nodes, whether its nodes' box reaches a plane or capsule
+    /// at the observed state (see [`super::contact::box_may_touch`]); without, each body's box is tested.
+    pub node_blocks: Option<&'a [bool]>,
 }
 
 impl RigidScene<'_> {
@@ -249,12 +270,12 @@ impl RigidScene<'_> {
             }
             let one = std::slice::from_ref(plane);
             let (f, _, _) = node_contacts(layer, one, &[], x, v, mass, self.dt);
-            let partner = if is_floor(&self.planes[j], &self.up) {
-                ContactPartner::Floor
-            } else {
-                ContactPartner::Wall
-            };
-            log.add(body, partner, f, plane.normal);
+            log.add(
+                body,
+                plane_partner(&self.planes[j], &self.up),
+                f,
+                plane.normal,
+            );
         }
         for (j, cap) in self.capsules.iter().enumerate() {
             let d = x - cap.closest_point(&x);
@@ -310,29 +331,39 @@ pub(crate) fn observe_rigid(
     velocities: &[Vector3<f64>],
     node_contact: &[bool],
     bodies: &[BodyInfo],
-    depths: Option<&dyn Fn(usize) -> f64>,
 ) {
     if scene.planes.is_empty() && scene.capsules.is_empty() {
         return;
     }
-    observe_surface(log, scene, surface, nodes, velocities, depths);
+    observe_surface(log, scene, surface, nodes, velocities);
     observe_nodes(log, scene, nodes, velocities, node_contact, bodies);
 }
 
-/// Log the rigid-surface contacts of the display-surface points. With `depths` (the step's
-/// deepest penetration per point, as the contact pass computed it), only the points that touch
-/// something are evaluated again; without, every point.
+/// Log the rigid-surface contacts of the display-surface points. With the contact pass's
+/// results (`scene.points`), only the points it found touching are looked at again, and with
+/// a single plane, no capsule and no lead their force is the pass's own: the pass evaluated
+/// the same contact law on the same point, layer and mass with that one plane (the same
+/// floating-point operations), so the log takes it as it is. Otherwise every point is
+/// evaluated surface by surface.
 pub(crate) fn observe_surface(
     log: &mut ContactLog,
     scene: &RigidScene,
     surface: &SurfacePoints,
     nodes: &NodeState,
     velocities: &[Vector3<f64>],
-    depths: Option<&dyn Fn(usize) -> f64>,
 ) {
+    let only_plane = match (scene.planes, scene.capsules.is_empty(), scene.lead == 0.0) {
+        ([plane], true, true) => Some((plane, plane_partner(plane, &scene.up))),
+        _ => None,
+    };
     for i in 0..surface.len() {
-        if let Some(depth) = depths {
-            if depth(i) <= 0.0 {
+        if let Some(points) = scene.points {
+            let (force, depth, _) = points.get(i).copied().unwrap_or_default();
+            if depth <= 0.0 {
+                continue;
+            }
+            if let Some((plane, partner)) = only_plane {
+                log.add(surface.body[i] as usize, partner, force, plane.normal);
                 continue;
             }
         }
@@ -346,8 +377,8 @@ pub(crate) fn observe_surface(
 }
 
 /// Log the rigid-surface contacts of the nodes that take contacts themselves (bodies without
-/// a display surface), body by body; a body whose nodes' box reaches no plane or capsule is
-/// skipped after the box.
+/// a display surface), body by body in node order. Nodes whose block (`scene.node_blocks`) or,
+/// without blocks, whose body's box reaches no plane or capsule are skipped: they have none.
 pub(crate) fn observe_nodes(
     log: &mut ContactLog,
     scene: &RigidScene,
@@ -356,50 +387,71 @@ pub(crate) fn observe_nodes(
     node_contact: &[bool],
     bodies: &[BodyInfo],
 ) {
-    for (b, info) in bodies.iter().enumerate() {
-        let range = &info.nodes;
-        if !node_contact.get(range.start).copied().unwrap_or(false) {
-            continue;
-        }
-        let (mut lo, mut hi) = (
-            Vector3::repeat(f64::INFINITY),
-            Vector3::repeat(f64::NEG_INFINITY),
-        );
-        for x in &nodes.position[range.clone()] {
-            lo = lo.inf(x);
-            hi = hi.sup(x);
-        }
-        let near_plane = scene.planes.iter().any(|pl| {
-            let lowest = (0..8)
-                .map(|c| {
-                    let corner = Vector3::new(
-                        if c & 1 == 0 { lo.x } else { hi.x },
-                        if c & 2 == 0 { lo.y } else { hi.y },
-                        if c & 4 == 0 { lo.z } else { hi.z },
-                    );
-                    pl.normal.dot(&corner)
-                })
-                .fold(f64::INFINITY, f64::min);
-            lowest < pl.offset
-        });
-        let near_capsule = scene.capsules.iter().any(|c| {
-            let (a, e) = c.endpoints();
-            let (clo, chi) = (
-                a.inf(&e).add_scalar(-c.radius),
-                a.sup(&e).add_scalar(c.radius),
-            );
-            (0..3).all(|k| clo[k] <= hi[k] && chi[k] >= lo[k])
-        });
-        if !(near_plane || near_capsule) {
-            continue;
-        }
-        for i in range.clone() {
+    let log_range = |log: &mut ContactLog, b: usize, range: Range<usize>| {
+        for i in range {
             if node_contact[i] {
                 let (x, v, m) = (nodes.position[i], velocities[i], nodes.mass[i]);
                 scene.log_point(log, b, scene.layer, x, v, m);
             }
         }
+    };
+    for (b, info) in bodies.iter().enumerate() {
+        let range = info.nodes.clone();
+        if range.is_empty() || !node_contact.get(range.start).copied().unwrap_or(false) {
+            continue;
+        }
+        match scene.node_blocks {
+            Some(near) => {
+                for block in range.start / CONTACT_BLOCK..range.end.div_ceil(CONTACT_BLOCK) {
+                    if near.get(block).copied().unwrap_or(true) {
+                        let from = range.start.max(block * CONTACT_BLOCK);
+                        let to = range.end.min((block + 1) * CONTACT_BLOCK);
+                        log_range(log, b, from..to);
+                    }
+                }
+            }
+            None => {
+                if body_box_near(scene, &nodes.position[range.clone()]) {
+                    log_range(log, b, range);
+                }
+            }
+        }
     }
+}
+
+/// Whether the box of a body's nodes at `xs` reaches a plane (its lowest corner below the
+/// offset) or a capsule's box (the test [`observe_nodes`] makes without node blocks).
+fn body_box_near(scene: &RigidScene, xs: &[Vector3<f64>]) -> bool {
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for x in xs {
+        lo = lo.inf(x);
+        hi = hi.sup(x);
+    }
+    let near_plane = scene.planes.iter().any(|pl| {
+        let lowest = (0..8)
+            .map(|c| {
+                let corner = Vector3::new(
+                    if c & 1 == 0 { lo.x } else { hi.x },
+                    if c & 2 == 0 { lo.y } else { hi.y },
+                    if c & 4 == 0 { lo.z } else { hi.z },
+                );
+                pl.normal.dot(&corner)
+            })
+            .fold(f64::INFINITY, f64::min);
+        lowest < pl.offset
+    });
+    let near_capsule = scene.capsules.iter().any(|c| {
+        let (a, e) = c.endpoints();
+        let (clo, chi) = (
+            a.inf(&e).add_scalar(-c.radius),
+            a.sup(&e).add_scalar(c.radius),
+        );
+        (0..3).all(|k| clo[k] <= hi[k] && chi[k] >= lo[k])
+    });
+    near_plane || near_capsule
 }
 
 #[cfg(test)]

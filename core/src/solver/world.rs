@@ -5,7 +5,9 @@
 
 use super::body_contact::{step_contacts, BodyContact};
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
-use super::contact::{node_contacts, ContactLayer, Plane};
+use super::contact::{
+    bounding_box, box_may_touch, node_contacts, ContactLayer, Plane, CONTACT_BLOCK,
+};
 use super::contact_log::{ContactLog, ContactRecord, RigidScene};
 use super::deformation_damping::rigid_motion;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
@@ -241,6 +243,9 @@ struct Prepared {
     surface_force: Vec<Vector3<f64>>,
     /// Per body: whether its nodes' box reaches a rigid surface this step.
     body_may_touch: Vec<bool>,
+    /// Per block of [`CONTACT_BLOCK`] nodes: whether its nodes' box reaches a rigid surface
+    /// this step (computed when some node takes contacts itself).
+    block_near: Vec<bool>,
     static_step: SubstepChoice,
     shortest_spring: f64,
 }
@@ -262,6 +267,7 @@ impl Prepared {
             + b(&self.dispersion_scratch.corrections)
             + b(&self.dispersion_scratch.changed)
             + b(&self.capsules)
+            + b(&self.block_near)
     }
 }
 
@@ -475,6 +481,7 @@ impl World {
                 capsules: Vec::with_capacity(self.manipulators.len() + self.live_capsules.len()),
                 point_contact: vec![(Vector3::zeros(), 0.0, Vector3::zeros()); self.surface.len()],
                 body_may_touch: Vec::with_capacity(self.bodies.len()),
+                block_near: vec![false; n.div_ceil(CONTACT_BLOCK)],
                 surface_force: vec![Vector3::zeros(); if self.surface.is_empty() { 0 } else { n }],
                 static_step,
                 shortest_spring,
@@ -753,6 +760,26 @@ impl World {
             .copied()
             .unwrap_or_else(Vector3::zeros);
 
+        // Rigid broad phase for the nodes that take contacts themselves: per block of nodes,
+        // whether its box reaches a plane or capsule (exact: a block that does not has no
+        // contact, see `box_may_touch`). The log and the node pass below skip the others.
+        let node_blocks = has_contact && node_contact.contains(&true);
+        if node_blocks {
+            let (planes, caps, pos) = (&settings.planes[..], &p.capsules[..], &nodes.position[..]);
+            p.block_near
+                .par_chunks_mut(PAR_CHUNK / CONTACT_BLOCK)
+                .enumerate()
+                .for_each(|(chunk, near)| {
+                    let first = chunk * PAR_CHUNK;
+                    for (j, near) in near.iter_mut().enumerate() {
+                        let start = first + j * CONTACT_BLOCK;
+                        let block = &pos[start..(start + CONTACT_BLOCK).min(pos.len())];
+                        let (lo, hi) = bounding_box(block);
+                        *near = box_may_touch(lo, hi, planes, caps);
+                    }
+                });
+        }
+
         // Contacts of the display surfaces, spread onto their nodes (serial scatter in point
         // order: deterministic).
         let surface_contact = has_contact && !surface.is_empty();
@@ -846,8 +873,6 @@ impl World {
         // (body, partner), at the state the forces are evaluated at (only the points the pass
         // above found touching are looked at again).
         {
-            let point_contact = &p.point_contact;
-            let depths = |i: usize| point_contact.get(i).map_or(0.0, |c| c.1);
             let scene = RigidScene {
                 layer: &layer,
                 planes: &settings.planes,
@@ -855,8 +880,9 @@ impl World {
                 up: settings.up,
                 dt,
                 lead: 0.0,
+                points: surface_contact.then_some(&p.point_contact[..]),
+                node_blocks: node_blocks.then_some(&p.block_near[..]),
             };
-            let hint: &dyn Fn(usize) -> f64 = &depths;
             step_contacts(
                 body_contact,
                 contact_log,
@@ -865,7 +891,6 @@ impl World {
                 nodes,
                 node_contact,
                 bodies,
-                surface_contact.then_some(hint),
             );
         }
 
@@ -878,6 +903,7 @@ impl World {
             let caps = &p.capsules[..];
             let adjacency = &p.adjacency;
             let spring_force = &p.spring_force[..];
+            let block_near = &p.block_near[..];
             let (pos, mass, inv_mass) = (&nodes.position[..], &nodes.mass[..], &nodes.inv_mass[..]);
             nodes
                 .velocity
@@ -904,11 +930,17 @@ impl World {
                             f += w.force(air, *v, mass[i]);
                         }
                         if has_contact && node_contact[i] {
-                            let (cf, d, fc) =
-                                node_contacts(&layer, planes, caps, pos[i], *v, mass[i], dt);
-                            f += cf;
-                            deepest = deepest.max(d);
-                            from_caps += fc;
+                            if block_near[i / CONTACT_BLOCK] {
+                                let (cf, d, fc) =
+                                    node_contacts(&layer, planes, caps, pos[i], *v, mass[i], dt);
+                                f += cf;
+                                deepest = deepest.max(d);
+                                from_caps += fc;
+                            } else {
+                                // Out of reach node_contacts gives +0 (no depth, no capsule
+                                // force); adding it keeps the bits (a −0 of f turns +0).
+                                f += Vector3::zeros();
+                            }
                         }
                         *v += f * (inv_mass[i] * dt);
                         // NaN-safe: a NaN spread makes the uniform test fail.
