@@ -105,6 +105,29 @@ pub(crate) fn box_may_touch(
         })
 }
 
+/// How deep `x` is below plane `p` (positive: in contact).
+#[inline]
+fn plane_depth(p: &Plane, x: &Vector3<f64>) -> f64 {
+    p.offset - p.normal.dot(x)
+}
+
+/// The offset of `x` from the nearest point of capsule `cap`'s axis, and its length.
+#[inline]
+fn capsule_offset(cap: &Capsule, x: &Vector3<f64>) -> (Vector3<f64>, f64) {
+    let d = x - cap.closest_point(x);
+    let dist = d.norm();
+    (d, dist)
+}
+
+/// Whether [`node_contacts`] finds any contact at `x` (the same depths, bit for bit).
+#[inline]
+pub(crate) fn touches_any(planes: &[Plane], capsules: &[Capsule], x: &Vector3<f64>) -> bool {
+    planes.iter().any(|p| plane_depth(p, x) > 0.0)
+        || capsules
+            .iter()
+            .any(|cap| cap.radius - capsule_offset(cap, x).1 > 0.0)
+}
+
 /// The contact of one node with every rigid surface: total force, deepest penetration and
 /// the force from the manipulators alone (for their reaction).
 #[inline]
@@ -120,7 +143,7 @@ pub(crate) fn node_contacts(
     let mut total = Vector3::zeros();
     let mut deepest = 0.0f64;
     for p in planes {
-        let depth = p.offset - p.normal.dot(&x);
+        let depth = plane_depth(p, &x);
         if depth > 0.0 {
             total += layer_force(layer, layer.friction, depth, p.normal, v, mass, dt);
             deepest = deepest.max(depth);
@@ -128,9 +151,7 @@ pub(crate) fn node_contacts(
     }
     let mut from_capsules = Vector3::zeros();
     for cap in capsules {
-        let closest = cap.closest_point(&x);
-        let d = x - closest;
-        let dist = d.norm();
+        let (d, dist) = capsule_offset(cap, &x);
         let depth = cap.radius - dist;
         if depth > 0.0 {
             let n = if dist > 1e-12 {

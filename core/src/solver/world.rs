@@ -6,7 +6,7 @@
 use super::body_contact::{step_contacts, BodyContact};
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{
-    bounding_box, box_may_touch, node_contacts, ContactLayer, Plane, CONTACT_BLOCK,
+    bounding_box, box_may_touch, node_contacts, touches_any, ContactLayer, Plane, CONTACT_BLOCK,
 };
 use super::contact_log::{ContactLog, ContactRecord, RigidScene};
 use super::deformation_damping::rigid_motion;
@@ -181,10 +181,17 @@ impl SurfacePoints {
         dt: f64,
     ) -> (Vector3<f64>, f64, Vector3<f64>) {
         let (w, ids) = (&self.weights[i], &self.nodes[i]);
-        let (mut x, mut v, mut compliance) = (Vector3::zeros(), Vector3::zeros(), 0.0);
+        let mut x = Vector3::zeros();
+        for c in 0..8 {
+            x += nodes.position[ids[c] as usize] * w[c];
+        }
+        // No contact: what node_contacts would give (+0 throughout), without its inputs.
+        if !touches_any(planes, capsules, &x) {
+            return (Vector3::zeros(), 0.0, Vector3::zeros());
+        }
+        let (mut v, mut compliance) = (Vector3::zeros(), 0.0);
         for c in 0..8 {
             let n = ids[c] as usize;
-            x += nodes.position[n] * w[c];
             v += velocities[n] * w[c];
             compliance += w[c] * w[c] * nodes.inv_mass[n];
         }
