@@ -253,6 +253,9 @@ struct Prepared {
     /// Per block of [`CONTACT_BLOCK`] nodes: whether its nodes' box reaches a rigid surface
     /// this step (computed when some node takes contacts itself).
     block_near: Vec<bool>,
+    /// Skip what cannot touch a rigid surface (node blocks, the log's second look at points
+    /// the surface pass found free); always, except in the test comparing with the full path.
+    rigid_broad_phase: bool,
     static_step: SubstepChoice,
     shortest_spring: f64,
 }
@@ -489,6 +492,7 @@ impl World {
                 point_contact: vec![(Vector3::zeros(), 0.0, Vector3::zeros()); self.surface.len()],
                 body_may_touch: Vec::with_capacity(self.bodies.len()),
                 block_near: vec![false; n.div_ceil(CONTACT_BLOCK)],
+                rigid_broad_phase: true,
                 surface_force: vec![Vector3::zeros(); if self.surface.is_empty() { 0 } else { n }],
                 static_step,
                 shortest_spring,
@@ -771,7 +775,9 @@ impl World {
         // whether its box reaches a plane or capsule (exact: a block that does not has no
         // contact, see `box_may_touch`). The log and the node pass below skip the others.
         let node_blocks = has_contact && node_contact.contains(&true);
-        if node_blocks {
+        if node_blocks && !p.rigid_broad_phase {
+            p.block_near.fill(true);
+        } else if node_blocks {
             let (planes, caps, pos) = (&settings.planes[..], &p.capsules[..], &nodes.position[..]);
             p.block_near
                 .par_chunks_mut(PAR_CHUNK / CONTACT_BLOCK)
@@ -887,8 +893,8 @@ impl World {
                 up: settings.up,
                 dt,
                 lead: 0.0,
-                points: surface_contact.then_some(&p.point_contact[..]),
-                node_blocks: node_blocks.then_some(&p.block_near[..]),
+                points: (surface_contact && p.rigid_broad_phase).then_some(&p.point_contact[..]),
+                node_blocks: (node_blocks && p.rigid_broad_phase).then_some(&p.block_near[..]),
             };
             step_contacts(
                 body_contact,
@@ -1390,5 +1396,101 @@ mod tests {
             corrections > 0 && uniform_steps > 0,
             "{corrections} {uniform_steps}"
         );
+    }
+
+    #[test]
+    fn rigid_broad_phase_changes_no_bit() {
+        use crate::solver::ContactPartner;
+        // Node contact (floor, two walls, a capsule pressing down) and display-surface contact
+        // (the floor alone: the log takes the surface pass's forces), each stepped with and
+        // without the rigid broad phase: the same state and contact records, bit for bit.
+        let (p, t) = box_mesh([0.0, 0.005, 0.0], [0.4, 0.405, 0.4]);
+        let lattice = fit_lattice(
+            &p,
+            &t,
+            &FitSettings {
+                resolution: Resolution::CellsAlongLongest(9),
+                ..FitSettings::default()
+            },
+        )
+        .unwrap();
+        let m = Material::preset("rubber").unwrap();
+        let bits = |w: &World| -> Vec<u64> {
+            let n = &w.nodes;
+            let all = n.position.iter().chain(&n.velocity);
+            all.flat_map(|v| v.iter().map(|c| c.to_bits())).collect()
+        };
+        let records = |w: &World| -> Vec<_> {
+            let r = w.frame_contacts().iter();
+            r.map(|r| {
+                let speeds = (r.impact_speed.to_bits(), r.peak_force.to_bits());
+                (r.body, r.partner, speeds, r.touching_at_end)
+            })
+            .collect()
+        };
+        for surface in [false, true] {
+            let mut planes = vec![Plane {
+                normal: Vector3::y(),
+                offset: 0.0,
+            }];
+            if !surface {
+                planes.push(Plane {
+                    normal: -Vector3::x(),
+                    offset: -0.41,
+                });
+                planes.push(Plane {
+                    normal: Vector3::new(0.1, 0.2, 1.0).normalize(),
+                    offset: 0.003,
+                });
+            }
+            let mut fast = World::new(WorldSettings {
+                planes,
+                layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+                ..WorldSettings::default()
+            });
+            let body = fast.add_lattice_body("cube", &lattice, &m, Vector3::new(0.3, -0.5, 0.0));
+            if surface {
+                let (samples, areas) = crate::lattice::surface_samples(&p, &t, 0.05);
+                fast.add_contact_surface(body, &lattice, &samples, &areas);
+            } else {
+                fast.live_capsules.push(Capsule {
+                    centre: Vector3::new(0.2, 0.44, 0.2),
+                    axis: Vector3::x(),
+                    length: 0.2,
+                    radius: 0.05,
+                    velocity: Vector3::new(0.0, -0.3, 0.0),
+                    friction: 0.3,
+                });
+            }
+            let mut full = fast.clone();
+            full.prepare().rigid_broad_phase = false;
+            let mut partners = Vec::new();
+            for frame in 1..=6 {
+                for w in [&mut fast, &mut full] {
+                    w.live_capsules.iter_mut().for_each(|c| c.centre.y -= 0.004);
+                }
+                let a = fast.advance_frame(1.0 / 120.0, frame, &|| false).unwrap();
+                let b = full.advance_frame(1.0 / 120.0, frame, &|| false).unwrap();
+                assert_eq!(a.max_penetration.to_bits(), b.max_penetration.to_bits());
+                assert_eq!(
+                    a.manipulator_reaction.map(f64::to_bits),
+                    b.manipulator_reaction.map(f64::to_bits)
+                );
+                assert_eq!(records(&fast), records(&full), "surface {surface}");
+                assert_eq!(bits(&fast), bits(&full), "surface {surface}");
+                partners.extend(fast.frame_contacts().iter().map(|r| r.partner));
+            }
+            // The scene exercises every partner, and the broad phase skipped blocks.
+            assert!(partners.contains(&ContactPartner::Floor), "{partners:?}");
+            if !surface {
+                assert!(partners.contains(&ContactPartner::Wall), "{partners:?}");
+                assert!(
+                    partners.contains(&ContactPartner::Manipulator(0)),
+                    "{partners:?}"
+                );
+                let near = fast.prepare().block_near.clone();
+                assert!(near.contains(&false) && near.contains(&true), "{near:?}");
+            }
+        }
     }
 }
