@@ -7,7 +7,7 @@ use super::body_contact::{step_contacts, BodyContact};
 use super::constraints::{ConstraintError, Path, TrajectoryConstraint, Wind};
 use super::contact::{node_contacts, ContactLayer, Plane};
 use super::contact_log::{ContactLog, ContactRecord, RigidScene};
-use super::deformation_damping::rigid_motion;
+use super::deformation_damping::{rigid_motion_in, RigidScratch};
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
 use super::manipulator::{Capsule, ManipulatorTrack};
@@ -237,6 +237,8 @@ struct Prepared {
     /// test comparing with the stamp-only sweeps).
     active_set_enabled: bool,
     dispersion_scratch: DispersionScratch,
+    /// Partial sums of the deformation damping's rigid-motion fit.
+    rigid_scratch: RigidScratch,
     capsules: Vec<Capsule>,
     /// Per surface point: contact force, depth, force from the manipulators.
     point_contact: Vec<(Vector3<f64>, f64, Vector3<f64>)>,
@@ -476,6 +478,7 @@ impl World {
                 hints_enabled: true,
                 active_set_enabled: true,
                 dispersion_scratch: DispersionScratch::default(),
+                rigid_scratch: RigidScratch::default(),
                 capsules: Vec::with_capacity(self.manipulators.len() + self.live_capsules.len()),
                 point_contact: vec![(Vector3::zeros(), 0.0, Vector3::zeros()); self.surface.len()],
                 body_may_touch: Vec::with_capacity(self.bodies.len()),
@@ -938,7 +941,7 @@ impl World {
         // Deformation damping: pull every node towards its body's rigid motion (serial fit in
         // node order, so deterministic; momentum and angular momentum are kept exactly).
         for body in bodies.iter().filter(|b| b.deformation_damping > 0.0) {
-            let rigid = rigid_motion(nodes, body.nodes.clone());
+            let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut p.rigid_scratch);
             let pull = (body.deformation_damping * dt).min(1.0);
             let (pos, vel) = (&nodes.position, &mut nodes.velocity);
             let (vel, pos) = (&mut vel[body.nodes.clone()], &pos[body.nodes.clone()]);
