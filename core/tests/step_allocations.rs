@@ -10,7 +10,7 @@ use springbake_core::lattice::{fit_lattice, surface_samples, FitSettings, Resolu
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{Capsule, Plane, World, WorldSettings};
+use springbake_core::solver::{BodyHandle, Capsule, Plane, RigidBody, World, WorldSettings};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -40,6 +40,9 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
+
+/// The counter is process-wide: the tests of this file take turns.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Heap allocations made by `f` (on any thread).
 fn allocations_in(f: impl FnOnce()) -> u64 {
@@ -81,6 +84,7 @@ fn dropped_cube(drop_m: f64) -> World {
 
 #[test]
 fn steps_allocate_nothing_once_the_buffers_have_grown() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -134,4 +138,38 @@ fn steps_allocate_nothing_once_the_buffers_have_grown() {
             "{n} heap allocations in 200 steps with a capsule in contact"
         );
     });
+}
+
+#[test]
+fn constrained_rigid_and_volume_steps_allocate_nothing() {
+    // The other step paths: a second cube stepped as a rigid body, a pinned corner and
+    // volume preservation on the soft cube.
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let mut w = dropped_cube(0.05);
+    let (p, t) = box_mesh([0.6, 0.3, 0.0], [0.8, 0.5, 0.2]);
+    let lattice = fit_lattice(
+        &p,
+        &t,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(3),
+            ..FitSettings::default()
+        },
+    )
+    .unwrap();
+    let m = Material::preset("rubber").unwrap();
+    let block = w.add_lattice_body("block", &lattice, &m, Vector3::zeros());
+    let range = w.bodies[block.0].nodes.clone();
+    w.rigid
+        .push(RigidBody::from_nodes(block.0, &w.nodes, range).unwrap());
+    w.preserve_volume(BodyHandle(0), 1.0).unwrap();
+    w.pin(&[0]).unwrap();
+    for f in 1..=6 {
+        w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+    }
+    let n = allocations_in(|| {
+        for f in 7..=12 {
+            w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        }
+    });
+    assert_eq!(n, 0, "{n} heap allocations in 6 frames");
 }

@@ -138,6 +138,20 @@ pub struct World {
     /// Body–body and body–collider contact (see [`super::body_contact`]).
     pub(crate) body_contact: BodyContact,
     prepared: Option<Prepared>,
+    /// Buffers of the step's constraint, rigid-body and volume passes, reused.
+    scratch: StepScratch,
+}
+
+/// Buffers [`World::step`] reuses for the passes around the integrator, so a step allocates
+/// nothing once they have grown.
+#[derive(Debug, Clone, Default)]
+struct StepScratch {
+    /// Per rigid body: its nodes' positions and velocities at the step's start.
+    rigid_before: Vec<Vec<(Vector3<f64>, Vector3<f64>)>>,
+    /// Per path constraint: its nodes' positions at the step's start.
+    constrained_before: Vec<Vec<Vector3<f64>>>,
+    /// Volume gradient per node of the body being corrected.
+    volume_grad: Vec<Vector3<f64>>,
 }
 
 /// Display-surface contact points (see [`crate::lattice::surface_samples`]), embedded in their
@@ -304,6 +318,7 @@ impl World {
             contact_log: ContactLog::default(),
             body_contact: BodyContact::default(),
             prepared: None,
+            scratch: StepScratch::default(),
         }
     }
 
@@ -606,29 +621,30 @@ impl World {
     /// once the prepared buffers exist; every parallel loop runs over fixed chunks, so the
     /// result does not depend on the thread count.
     fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
-        let rigid_before: Vec<Vec<(Vector3<f64>, Vector3<f64>)>> = self
-            .rigid
-            .iter()
-            .map(|r| {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.rigid_before.resize_with(self.rigid.len(), Vec::new);
+        for (r, before) in self.rigid.iter().zip(&mut scratch.rigid_before) {
+            before.clear();
+            before.extend(
                 self.bodies[r.body]
                     .nodes
                     .clone()
-                    .map(|i| (self.nodes.position[i], self.nodes.velocity[i]))
-                    .collect()
-            })
-            .collect();
+                    .map(|i| (self.nodes.position[i], self.nodes.velocity[i])),
+            );
+        }
         let mut stats = match self.settings.integrator {
             Integrator::SymplecticEuler if self.constraints.is_empty() => self.euler_step(dt, acc),
             Integrator::SymplecticEuler => {
                 let t = self.time;
-                let before: Vec<Vec<Vector3<f64>>> = self
-                    .constraints
-                    .iter()
-                    .map(|c| c.nodes.iter().map(|&i| self.nodes.position[i]).collect())
-                    .collect();
+                let before = &mut scratch.constrained_before;
+                before.resize_with(self.constraints.len(), Vec::new);
+                for (c, b) in self.constraints.iter().zip(before.iter_mut()) {
+                    b.clear();
+                    b.extend(c.nodes.iter().map(|&i| self.nodes.position[i]));
+                }
                 let stats = self.euler_step(dt, acc);
                 // Enforce the paths on the stepped state (module docs of `constraints`).
-                for (c, old) in self.constraints.iter().zip(&before) {
+                for (c, old) in self.constraints.iter().zip(before.iter()) {
                     let s = c.strength;
                     for (j, &i) in c.nodes.iter().enumerate() {
                         let target = c.target(j, t + dt);
@@ -671,7 +687,7 @@ impl World {
                 }
             }
         };
-        for (r, before) in self.rigid.iter_mut().zip(&rigid_before) {
+        for (r, before) in self.rigid.iter_mut().zip(&scratch.rigid_before) {
             let range = self.bodies[r.body].nodes.clone();
             r.advance(&mut self.nodes, range, before, dt);
         }
@@ -703,11 +719,13 @@ impl World {
                 vc.iterations,
                 dt,
                 fraction,
+                &mut scratch.volume_grad,
             );
             let drift = 1.0 - now / previous;
             stats.volume_error = stats.volume_error.max(drift.abs());
         }
         super::joints::sync(&self.joints, &mut self.nodes);
+        self.scratch = scratch;
         stats
     }
 
