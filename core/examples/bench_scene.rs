@@ -5,7 +5,8 @@
 //!
 //! `cargo run --release -p springbake-core --example bench_scene [-- --json] [-- --quick]`
 //! `--json` prints one JSON line last (for scripts/bench.sh); `--quick` skips 64³ and the
-//! frame-time sweep; `--standard` runs only the standard scene; `--trace` runs only the standard scene and prints each frame's diagnostics.
+//! frame-time sweep; `--standard` runs only the standard scene; `--trace` runs only the standard scene and prints each frame's diagnostics;
+//! `--step CELLS` times only the step of a CELLS-per-side cube, 1 and 2 threads (for profiling).
 
 use springbake_core::lattice::{
     fit_lattice, surface_samples, FitSettings, Resolution, SpringLayout,
@@ -134,13 +135,15 @@ fn standard(threads: usize, trace: bool) -> Standard {
         let mut penetration_max = 0.0f64;
         let mut substeps = 0u64;
         for f in 1..=100 {
+            let frame_start = Instant::now();
             let d = w.advance_frame(1.0 / 24.0, f, &|| false).expect("finite");
+            let frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
             inverted_max = inverted_max.max(d.inverted_cells);
             penetration_max = penetration_max.max(d.max_penetration);
             substeps += d.substeps as u64;
             if trace {
                 println!(
-                    "    frame {f:>3}: {} substeps, dispersion {} corrections / {} sweeps / {} cap hits, \
+                    "    frame {f:>3}: {frame_ms:>6.1} ms, {} substeps, dispersion {} corrections / {} sweeps / {} cap hits, \
                      inverted {}, penetration {:.4} m, max speed {:.3} m/s",
                     d.substeps,
                     d.dispersion_corrections,
@@ -161,6 +164,23 @@ fn standard(threads: usize, trace: bool) -> Standard {
             nodes: w.nodes.len(),
         }
     })
+}
+
+/// User + system CPU seconds of this process, all threads (`/proc/self/stat`, 100 Hz ticks):
+/// `--step` prints how many cores were busy, which tells a shared machine's noise apart.
+fn process_cpu_s() -> f64 {
+    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesised command name: utime and stime are the 12th and 13th.
+    let after = s.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = after
+        .split_whitespace()
+        .skip(11)
+        .take(2)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    f.iter().sum::<f64>() / 100.0
 }
 
 /// Peak resident memory of this process (VmHWM), bytes.
@@ -185,6 +205,26 @@ fn main() {
     let only_standard = args.iter().any(|a| a == "--standard");
     if trace {
         standard(1, true);
+        return;
+    }
+    if let Some(cells) = args
+        .iter()
+        .position(|a| a == "--step")
+        .and_then(|i| args.get(i + 1))
+    {
+        let cells: u32 = cells.parse().expect("--step takes a cell count per side");
+        println!("load average before: {}", load_average());
+        for threads in [1, 2] {
+            let cpu0 = process_cpu_s();
+            let t0 = Instant::now();
+            let r = node_steps_per_s(cells, threads, 2.0);
+            let busy = (process_cpu_s() - cpu0) / t0.elapsed().as_secs_f64();
+            println!(
+                "  {:>2}³ nodes, {threads} thread(s): {:>7.2} M node-steps/s ({busy:.2} cores busy)",
+                cells + 1,
+                r / 1e6
+            );
+        }
         return;
     }
     let sizes: &[u32] = if quick { &[15, 31] } else { &[15, 31, 63] };

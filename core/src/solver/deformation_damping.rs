@@ -32,26 +32,46 @@ impl RigidMotion {
 /// velocity `I⁻¹ L` about it). Partial sums over fixed chunks, added in chunk order: the same
 /// bits with any thread count.
 pub fn rigid_motion(nodes: &NodeState, range: Range<usize>) -> RigidMotion {
-    let chunks = |start: usize, end: usize| {
-        (start..end)
-            .step_by(PAR_CHUNK)
-            .map(move |c| c..(c + PAR_CHUNK).min(end))
-            .collect::<Vec<_>>()
+    rigid_motion_in(nodes, range, &mut RigidScratch::default())
+}
+
+/// Per-chunk partial sums of [`rigid_motion_in`], kept between calls so the solver's step
+/// allocates nothing.
+#[derive(Debug, Clone, Default)]
+pub struct RigidScratch {
+    first: Vec<(f64, Vector3<f64>, Vector3<f64>)>,
+    second: Vec<(Matrix3<f64>, Vector3<f64>)>,
+}
+
+/// [`rigid_motion`] with reusable buffers.
+pub fn rigid_motion_in(
+    nodes: &NodeState,
+    range: Range<usize>,
+    scratch: &mut RigidScratch,
+) -> RigidMotion {
+    let chunks = range.len().div_ceil(PAR_CHUNK);
+    let chunk = |c: usize| {
+        let start = range.start + c * PAR_CHUNK;
+        start..(start + PAR_CHUNK).min(range.end)
     };
-    let parts = chunks(range.start, range.end);
-    let first: Vec<(f64, Vector3<f64>, Vector3<f64>)> = parts
-        .par_iter()
-        .map(|r| {
+    scratch
+        .first
+        .resize(chunks, (0.0, Vector3::zeros(), Vector3::zeros()));
+    scratch
+        .first
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(c, out)| {
             let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
-            for i in r.clone() {
+            for i in chunk(c) {
                 m += nodes.mass[i];
                 mx += nodes.position[i] * nodes.mass[i];
                 mv += nodes.velocity[i] * nodes.mass[i];
             }
-            (m, mx, mv)
-        })
-        .collect();
-    let (m, mx, mv) = first
+            *out = (m, mx, mv);
+        });
+    let (m, mx, mv) = scratch
+        .first
         .iter()
         .fold((0.0, Vector3::zeros(), Vector3::zeros()), |a, b| {
             (a.0 + b.0, a.1 + b.1, a.2 + b.2)
@@ -64,20 +84,25 @@ pub fn rigid_motion(nodes: &NodeState, range: Range<usize>) -> RigidMotion {
         };
     }
     let (centre, velocity) = (mx / m, mv / m);
-    let second: Vec<(Matrix3<f64>, Vector3<f64>)> = parts
-        .par_iter()
-        .map(|r| {
+    scratch
+        .second
+        .resize(chunks, (Matrix3::zeros(), Vector3::zeros()));
+    scratch
+        .second
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(c, out)| {
             let (mut inertia, mut momentum) = (Matrix3::zeros(), Vector3::zeros());
-            for i in r.clone() {
+            for i in chunk(c) {
                 let d = nodes.position[i] - centre;
                 let mi = nodes.mass[i];
                 inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
                 momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
             }
-            (inertia, momentum)
-        })
-        .collect();
-    let (inertia, momentum) = second
+            *out = (inertia, momentum);
+        });
+    let (inertia, momentum) = scratch
+        .second
         .iter()
         .fold((Matrix3::zeros(), Vector3::zeros()), |a, b| {
             (a.0 + b.0, a.1 + b.1)

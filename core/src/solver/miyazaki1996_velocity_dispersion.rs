@@ -25,6 +25,7 @@
 //! reach (θ = 0) keeps only motion back towards L, at a speed proportional to its excess strain
 //! (`fused_release`), so it returns instead of staying fused forever.
 
+use super::forces::Adjacency;
 use super::{NodeState, SpringSet, PAR_CHUNK};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -56,6 +57,8 @@ pub struct SpringColouring {
     pub order: Vec<u32>,
     /// `order[offsets[c]..offsets[c+1]]` are the springs of colour c.
     pub offsets: Vec<u32>,
+    /// Colour of each spring (for the active set of the later sweeps).
+    pub colour: Vec<u16>,
 }
 
 impl SpringColouring {
@@ -101,7 +104,17 @@ impl SpringColouring {
             order[fill[c as usize] as usize] = s as u32;
             fill[c as usize] += 1;
         }
-        SpringColouring { order, offsets }
+        // A node of degree d needs at most 2d − 1 colours: far below u16::MAX for any lattice
+        // or cage; the clamp only keeps a pathological model from wrapping.
+        let colour = colour_of
+            .iter()
+            .map(|&c| c.min(u16::MAX as u32) as u16)
+            .collect();
+        SpringColouring {
+            order,
+            offsets,
+            colour,
+        }
     }
 
     pub fn colour_count(&self) -> usize {
@@ -363,6 +376,10 @@ pub(crate) struct DispersionScratch {
     pub changed: Vec<u64>,
     /// The last pass number handed out.
     pub pass: u64,
+    /// This call's velocity changes in order: (colour pass, node), for the active set.
+    pub log: Vec<(u64, u32)>,
+    /// One colour's candidate springs in a later sweep.
+    pub candidates: Vec<u32>,
 }
 
 /// Apply the dispersion procedure to `nodes.velocity` (positions are the current ones).
@@ -389,6 +406,7 @@ pub fn disperse(
         max_iterations,
         &mut buffers,
         None,
+        None,
     );
     *scratch = buffers.corrections;
     stats
@@ -401,8 +419,11 @@ pub fn disperse(
 /// evaluates every spring; later sweeps evaluate a spring only when one of its ends changed
 /// velocity since the spring was last evaluated (positions do not move during the procedure,
 /// so an unchanged spring would be found within its bound again): the same corrections in the
-/// same order as full sweeps, at the cost of reading two stamps per spring. `hints` (from the
-/// solver's spring and node passes) let the check and the first sweep skip springs that
+/// same order as full sweeps. Without `adjacency` a later sweep finds those springs by reading
+/// two stamps per spring; with it (the solver's node → spring lists) only the springs of the
+/// nodes changed since are visited, the "active set": an impact whose sweeps correct a
+/// handful of springs each no longer pays a pass over every spring per sweep. `hints` (from
+/// the solver's spring and node passes) let the check and the first sweep skip springs that
 /// cannot be over their bound.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn disperse_with(
@@ -414,19 +435,25 @@ pub(crate) fn disperse_with(
     max_iterations: u32,
     scratch: &mut DispersionScratch,
     hints: Option<SpringHints>,
+    adjacency: Option<&Adjacency>,
 ) -> DispersionStats {
     let mut stats = DispersionStats::default();
     if mode == DispersionMode::Off || !any_violation(mode, nodes, springs, dt, hints) {
         return stats;
     }
-    const NONE: u32 = u32::MAX;
     if scratch.changed.len() != nodes.len() {
         scratch.changed.clear();
         scratch.changed.resize(nodes.len(), 0);
     }
+    scratch.log.clear();
     let colours = colouring.colour_count() as u64;
+    // The active set needs every spring's colour (a colouring built before this field existed
+    // in a test, or a mismatched one, falls back to the stamps).
+    let adjacency = adjacency.filter(|_| colouring.colour.len() == springs.len());
     // Pass numbers of this call: base + 1 + sweep·colours + colour, all above every stamp.
     let base = scratch.pass;
+    // Start of the log entries at or after the pass being looked back to (monotone).
+    let mut window = 0usize;
     loop {
         let sweep = stats.iterations as u64;
         let mut violated = 0u64;
@@ -436,49 +463,80 @@ pub(crate) fn disperse_with(
             let pass = base + 1 + sweep * colours + c as u64;
             // The pass that last evaluated this colour (none before the first sweep).
             let last_eval = (sweep > 0).then(|| pass - colours);
+            let evaluate: &[u32] = match (last_eval, adjacency) {
+                (Some(last), Some(adj)) => {
+                    // Active set: the springs of this colour at nodes changed since `last`.
+                    while window < scratch.log.len() && scratch.log[window].0 < last {
+                        window += 1;
+                    }
+                    scratch.candidates.clear();
+                    for &(_, n) in &scratch.log[window..] {
+                        let n = n as usize;
+                        let links =
+                            &adj.links[adj.offsets[n] as usize..adj.offsets[n + 1] as usize];
+                        for &link in links {
+                            let s = link >> 1;
+                            if colouring.colour[s as usize] as usize == c {
+                                scratch.candidates.push(s);
+                            }
+                        }
+                    }
+                    scratch.candidates.sort_unstable();
+                    scratch.candidates.dedup();
+                    &scratch.candidates
+                }
+                _ => group,
+            };
             let corrections = &mut scratch.corrections;
-            if corrections.len() < group.len() {
-                corrections.resize(group.len(), (NONE, Vector3::zeros(), Vector3::zeros()));
+            if corrections.len() < evaluate.len() {
+                corrections.resize(evaluate.len(), (NONE, Vector3::zeros(), Vector3::zeros()));
             }
             let state: &NodeState = nodes;
             let changed = &scratch.changed[..];
-            corrections[..group.len()]
-                .par_iter_mut()
-                .zip(group.par_iter())
-                .with_min_len(PAR_CHUNK)
-                .for_each(|(slot, &s)| {
-                    let su = s as usize;
-                    let stale = match last_eval {
-                        // First sweep: what the hints cannot clear, and every spring an
-                        // earlier colour of this sweep changed (the hints predate that).
-                        None => {
-                            changed[springs.a[su] as usize].max(changed[springs.b[su] as usize])
-                                > base
-                                || !skippable(mode, state, springs, su, dt, hints)
-                        }
-                        Some(last) => {
-                            changed[springs.a[su] as usize].max(changed[springs.b[su] as usize])
-                                >= last
-                        }
-                    };
-                    slot.0 = NONE;
-                    if stale {
-                        if let Some((da, db)) = correction(mode, state, springs, su, dt) {
-                            *slot = (s, da, db);
-                        }
+            let slot_of = |(slot, &s): (&mut (u32, Vector3<f64>, Vector3<f64>), &u32)| {
+                let su = s as usize;
+                let stale = match last_eval {
+                    // First sweep: what the hints cannot clear, and every spring an earlier
+                    // colour of this sweep changed (the hints predate that).
+                    None => {
+                        changed[springs.a[su] as usize].max(changed[springs.b[su] as usize]) > base
+                            || !skippable(mode, state, springs, su, dt, hints)
                     }
-                });
+                    Some(last) => {
+                        changed[springs.a[su] as usize].max(changed[springs.b[su] as usize]) >= last
+                    }
+                };
+                slot.0 = NONE;
+                if stale {
+                    if let Some((da, db)) = correction(mode, state, springs, su, dt) {
+                        *slot = (s, da, db);
+                    }
+                }
+            };
+            if evaluate.len() > 2 * PAR_CHUNK {
+                corrections[..evaluate.len()]
+                    .par_iter_mut()
+                    .zip(evaluate.par_iter())
+                    .with_min_len(PAR_CHUNK)
+                    .for_each(slot_of);
+            } else {
+                corrections[..evaluate.len()]
+                    .iter_mut()
+                    .zip(evaluate.iter())
+                    .for_each(slot_of);
+            }
             // No two springs of one colour share a node: applying in any order is the same.
-            for &(s, da, db) in corrections[..group.len()].iter() {
+            for &(s, da, db) in corrections[..evaluate.len()].iter() {
                 if s != NONE {
-                    let (a, b) = (
-                        springs.a[s as usize] as usize,
-                        springs.b[s as usize] as usize,
-                    );
-                    nodes.velocity[a] += da;
-                    nodes.velocity[b] += db;
-                    scratch.changed[a] = pass;
-                    scratch.changed[b] = pass;
+                    let (a, b) = (springs.a[s as usize], springs.b[s as usize]);
+                    nodes.velocity[a as usize] += da;
+                    nodes.velocity[b as usize] += db;
+                    scratch.changed[a as usize] = pass;
+                    scratch.changed[b as usize] = pass;
+                    if adjacency.is_some() {
+                        scratch.log.push((pass, a));
+                        scratch.log.push((pass, b));
+                    }
                     violated += 1;
                 }
             }
@@ -498,6 +556,9 @@ pub(crate) fn disperse_with(
     }
     stats
 }
+
+/// No correction in a slot of [`DispersionScratch::corrections`].
+const NONE: u32 = u32::MAX;
 
 #[cfg(test)]
 mod tests {

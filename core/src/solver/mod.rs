@@ -95,14 +95,26 @@ impl SpringSet {
 pub(crate) const PAR_CHUNK: usize = 2048;
 
 /// Sum `f(i)` over `0..n` in fixed chunks, so the result does not depend on the thread count.
+/// The chunk sums are added in chunk order; they are computed in batches held on the stack, so
+/// nothing is allocated.
 pub(crate) fn deterministic_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
     use rayon::prelude::*;
+    const BATCH: usize = 64;
     let chunks = n.div_ceil(PAR_CHUNK);
-    let partial: Vec<f64> = (0..chunks)
-        .into_par_iter()
-        .map(|c| (c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n)).map(&f).sum())
-        .collect();
-    partial.into_iter().sum()
+    // −0.0 like `Iterator::sum` of floats: the same bits as summing the collected chunk sums.
+    let mut total = -0.0;
+    for first in (0..chunks).step_by(BATCH) {
+        let mut partial = [0.0f64; BATCH];
+        let batch = &mut partial[..BATCH.min(chunks - first)];
+        batch.par_iter_mut().enumerate().for_each(|(j, out)| {
+            let c = first + j;
+            *out = (c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n)).map(&f).sum();
+        });
+        for p in batch.iter() {
+            total += p;
+        }
+    }
+    total
 }
 
 /// Maximum of `f(i)` over `0..n` (order does not matter for max, but keep one code path).

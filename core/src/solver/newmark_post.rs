@@ -67,6 +67,7 @@ pub(crate) fn after_corrector(world: &mut World, post: &mut PostState, dt: f64) 
             world.settings.max_dispersion_iterations,
             &mut post.scratch,
             None,
+            None,
         )
     };
     for (i, v0) in post.before.iter().enumerate() {

@@ -67,7 +67,9 @@ pub fn cells_volume(cells: &[[u32; 8]], positions: &[Vector3<f64>]) -> f64 {
 /// becomes `target`. Adds `velocity_fraction` ×
 /// displacement / `dt` to the velocities (1 when the correction only undoes this step's drift;
 /// less when part of it moves the target, which must not throw the nodes). Returns the
-/// volume before the correction.
+/// volume before the correction. `grad` is scratch space (reused, so the step allocates
+/// nothing).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn correct_volume(
     nodes: &mut NodeState,
     cells: &[[u32; 8]],
@@ -76,8 +78,10 @@ pub(crate) fn correct_volume(
     iterations: u32,
     dt: f64,
     velocity_fraction: f64,
+    grad: &mut Vec<Vector3<f64>>,
 ) -> f64 {
-    let mut grad = vec![Vector3::zeros(); range.len()];
+    grad.clear();
+    grad.resize(range.len(), Vector3::zeros());
     let before = cells_volume(cells, &nodes.position);
     let base = range.start;
     for _ in 0..iterations {
@@ -154,7 +158,16 @@ mod tests {
             mass: vec![1.0; 8],
             inv_mass: vec![1.0; 8],
         };
-        let before = correct_volume(&mut nodes, &[cell], 0..8, 2.4, 3, 0.01, 1.0);
+        let before = correct_volume(
+            &mut nodes,
+            &[cell],
+            0..8,
+            2.4,
+            3,
+            0.01,
+            1.0,
+            &mut Vec::new(),
+        );
         assert!((before - 3.0).abs() < 1e-14);
         let after = cells_volume(&[cell], &nodes.position);
         assert!((after - 2.4).abs() < 1e-9, "{after}");
