@@ -8,20 +8,24 @@
 //! Nodes of path constraints keep the corrector's state, so they stay on their paths exactly.
 //! The accelerations kept for the next step are the forces' (an operator split).
 
-use super::deformation_damping::rigid_motion;
+use super::deformation_damping::{rigid_motion_in, RigidScratch};
+use super::forces::Adjacency;
 use super::miyazaki1996_velocity_dispersion::{
     disperse_with, DispersionMode, DispersionScratch, DispersionStats, SpringColouring,
 };
 use super::World;
 use nalgebra::Vector3;
 
-/// Colouring and scratch kept between steps.
+/// Colouring, node → spring lists (the dispersion's active set) and scratch kept between
+/// steps.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct PostState {
     colouring: SpringColouring,
-    /// (nodes, springs) the colouring was built for.
+    adjacency: Adjacency,
+    /// (nodes, springs) the colouring and adjacency were built for.
     built_for: (usize, usize),
     scratch: DispersionScratch,
+    rigid: RigidScratch,
     before: Vec<Vector3<f64>>,
     kept: Vec<(usize, Vector3<f64>, Vector3<f64>)>,
 }
@@ -42,7 +46,7 @@ pub(crate) fn after_corrector(world: &mut World, post: &mut PostState, dt: f64) 
         }
     }
     for body in world.bodies.iter().filter(|b| b.deformation_damping > 0.0) {
-        let rigid = rigid_motion(nodes, body.nodes.clone());
+        let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut post.rigid);
         let pull = (body.deformation_damping * dt).min(1.0);
         for i in body.nodes.clone() {
             let target = rigid.velocity_at(&nodes.position[i]);
@@ -56,6 +60,7 @@ pub(crate) fn after_corrector(world: &mut World, post: &mut PostState, dt: f64) 
         let shape = (nodes.len(), world.springs.len());
         if post.built_for != shape {
             post.colouring = SpringColouring::new(nodes.len(), &world.springs);
+            post.adjacency = Adjacency::new(nodes.len(), &world.springs);
             post.built_for = shape;
         }
         disperse_with(
@@ -67,7 +72,7 @@ pub(crate) fn after_corrector(world: &mut World, post: &mut PostState, dt: f64) 
             world.settings.max_dispersion_iterations,
             &mut post.scratch,
             None,
-            None,
+            Some(&post.adjacency),
         )
     };
     for (i, v0) in post.before.iter().enumerate() {
