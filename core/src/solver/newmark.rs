@@ -25,7 +25,7 @@
 //! towards the rigid motion act as in the symplectic step ([`super::newmark_post`]).
 
 use super::constraints::TrajectoryConstraint;
-use super::contact::node_contacts;
+use super::contact::{bounding_box, box_may_touch, node_contacts, CONTACT_BLOCK};
 use super::forces::{gathered_spring_force, spring_forces, Adjacency};
 use super::manipulator::Capsule;
 use super::{NodeState, World};
@@ -152,8 +152,17 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
             }
         }
     }
+    // Whether the current block of nodes reaches a rigid surface (see `box_may_touch`), for
+    // the nodes that take contacts themselves.
+    let node_blocks = has_contact && world.node_contact.contains(&true);
+    let mut near = false;
     for (i, a) in st.next.iter_mut().enumerate() {
         let (x, v, m) = (trial.position[i], trial.velocity[i], trial.mass[i]);
+        if node_blocks && i % CONTACT_BLOCK == 0 {
+            let block = &trial.position[i..(i + CONTACT_BLOCK).min(trial.len())];
+            let (lo, hi) = bounding_box(block);
+            near = box_may_touch(lo, hi, &settings.planes, &st.capsules);
+        }
         let mut f =
             settings.gravity * m + gathered_spring_force(&st.adjacency, &st.spring_force, i);
         if let Some((w, air)) = air {
@@ -166,7 +175,10 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
             // Body–body and collider contacts, from the step's starting state.
             f += world.body_contact.force[i];
         }
-        if has_contact && world.node_contact[i] {
+        if has_contact && world.node_contact[i] && !near {
+            // Out of reach node_contacts gives +0; adding it keeps the bits (−0 turns +0).
+            f += Vector3::zeros();
+        } else if has_contact && world.node_contact[i] {
             let (cf, d, _) = node_contacts(
                 &settings.layer,
                 &settings.planes,
