@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p springbake-core --example bench_scene [-- --json] [-- --quick]`
 //! `--json` prints one JSON line last (for scripts/bench.sh); `--quick` skips 64³ and the
-//! frame-time sweep; `--standard` runs only the standard scene; `--trace` runs only the standard scene and prints each frame's diagnostics;
+//! frame-time sweep; `--standard` runs only the standard scene; `--trace [THREADS]` runs only the standard scene (1 thread unless given) and prints each frame's diagnostics and wall time;
 //! `--step CELLS` times only the step of a CELLS-per-side cube, 1 and 2 threads (for profiling).
 
 use springbake_core::lattice::{
@@ -204,7 +204,14 @@ fn main() {
     let trace = args.iter().any(|a| a == "--trace");
     let only_standard = args.iter().any(|a| a == "--standard");
     if trace {
-        standard(1, true);
+        let threads = args
+            .iter()
+            .position(|a| a == "--trace")
+            .and_then(|i| args.get(i + 1))
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(1);
+        let s = standard(threads, true);
+        println!("{threads} thread(s): {:.2} s wall", s.wall_s);
         return;
     }
     if let Some(cells) = args
