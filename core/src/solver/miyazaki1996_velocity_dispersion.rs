@@ -57,7 +57,8 @@ pub struct SpringColouring {
     pub order: Vec<u32>,
     /// `order[offsets[c]..offsets[c+1]]` are the springs of colour c.
     pub offsets: Vec<u32>,
-    /// Colour of each spring (for the active set of the later sweeps).
+    /// Colour of each spring (for the active set of the later sweeps); empty when there are
+    /// more than `u16::MAX` colours.
     pub colour: Vec<u16>,
 }
 
@@ -105,11 +106,13 @@ impl SpringColouring {
             fill[c as usize] += 1;
         }
         // A node of degree d needs at most 2d − 1 colours: far below u16::MAX for any lattice
-        // or cage; the clamp only keeps a pathological model from wrapping.
-        let colour = colour_of
-            .iter()
-            .map(|&c| c.min(u16::MAX as u32) as u16)
-            .collect();
+        // or cage. A model that needed more gets no per-spring colours, and the dispersion
+        // falls back to its stamp sweeps.
+        let colour = if colours <= u16::MAX as u32 {
+            colour_of.iter().map(|&c| c as u16).collect()
+        } else {
+            Vec::new()
+        };
         SpringColouring {
             order,
             offsets,
@@ -447,8 +450,7 @@ pub(crate) fn disperse_with(
     }
     scratch.log.clear();
     let colours = colouring.colour_count() as u64;
-    // The active set needs every spring's colour (a colouring built before this field existed
-    // in a test, or a mismatched one, falls back to the stamps).
+    // The active set needs every spring's colour (without them: the stamp sweeps).
     let adjacency = adjacency.filter(|_| colouring.colour.len() == springs.len());
     // Pass numbers of this call: base + 1 + sweep·colours + colour, all above every stamp.
     let base = scratch.pass;
