@@ -3,18 +3,19 @@
 //! and the Hertz model's pulse matches the closed form.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_core::collide::StaticCollider;
 use springbake_core::hertz::{
     lattice_spring_area_m2, young_from_springs, ContactGeometry, HertzBody, HertzImpact, SpringEdge,
 };
-use springbake_core::lattice::{
-    fit_lattice, surface_samples, Embedding, FitSettings, Lattice, Resolution,
-};
+use springbake_core::lattice::{surface_samples, Embedding, Lattice};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::{box_mesh, uv_sphere};
 use springbake_core::solver::{BodyHandle, ContactModel, ContactPartner, World, WorldSettings};
 use std::time::Instant;
+use support::{fit, fitted_box};
 
 /// A body of the world with its display mesh.
 struct Body {
@@ -57,15 +58,7 @@ fn add_body(
     material: &Material,
     velocity: Vector3<f64>,
 ) -> (Body, Lattice) {
-    let lattice = fit_lattice(
-        points,
-        triangles,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let lattice = fit(points, triangles, cells);
     let handle = w.add_lattice_body(name, &lattice, material, velocity);
     let (s, a) = surface_samples(points, triangles, 0.5 * lattice.cell_size);
     w.add_contact_surface(handle, &lattice, &s, &a);
@@ -119,19 +112,10 @@ fn no_gravity(lattice: &Lattice, m: &Material) -> WorldSettings {
 fn two_soft_cubes_thrown_at_each_other_bounce_apart_without_interpenetrating() {
     let started = Instant::now();
     let m = Material::preset("soft_rubber").unwrap();
-    let (pa, ta) = box_mesh([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1]);
+    let (pa, ta, lattice) = fitted_box([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1], 4);
     // The second cube is a little higher and turned by a non-axis offset: faces meet off
     // centre, so edges and corners of one reach the other's faces.
     let (pb, tb) = box_mesh([0.1, 0.07, -0.04], [0.3, 0.27, 0.16]);
-    let lattice = fit_lattice(
-        &pa,
-        &ta,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(4),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
     let mut w = World::new(no_gravity(&lattice, &m));
     let speed = 3.0;
     let (a, _) = add_body(&mut w, "a", &pa, &ta, 4, &m, Vector3::new(speed, 0.0, 0.0));
@@ -169,17 +153,8 @@ fn momentum_is_conserved_in_a_gravity_free_collision() {
     // Unequal bodies, glancing: a light cube hits a heavier, larger one off centre.
     let light = Material::preset("soft_rubber").unwrap();
     let heavy = Material::new("dense", 6.0e5, 0.45, 3000.0, 0.1).unwrap();
-    let (pa, ta) = box_mesh([-0.35, 0.05, -0.05], [-0.2, 0.2, 0.1]);
+    let (pa, ta, lattice) = fitted_box([-0.35, 0.05, -0.05], [-0.2, 0.2, 0.1], 3);
     let (pb, tb) = box_mesh([0.0, 0.0, 0.0], [0.25, 0.25, 0.25]);
-    let lattice = fit_lattice(
-        &pa,
-        &ta,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(3),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
     let mut w = World::new(no_gravity(&lattice, &light));
     let (a, _) = add_body(
         &mut w,
@@ -222,16 +197,7 @@ fn momentum_is_conserved_in_a_gravity_free_collision() {
 fn a_cube_dropped_on_a_static_box_rests_on_it() {
     let m = Material::preset("soft_rubber").unwrap();
     let (pc, tc) = box_mesh([-0.5, -0.3, -0.5], [0.5, 0.0, 0.5]);
-    let (p, t) = box_mesh([-0.1, 0.3, -0.1], [0.1, 0.5, 0.1]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(4),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let (p, t, lattice) = fitted_box([-0.1, 0.3, -0.1], [0.1, 0.5, 0.1], 4);
     let mut w = World::new(WorldSettings {
         gravity: Vector3::new(0.0, -9.81, 0.0),
         layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
@@ -291,15 +257,7 @@ fn hertz_drop(rigid: bool, v0: f64) -> (f64, f64, HertzImpact) {
     let r = 0.1;
     let (pc, tc) = box_mesh([-0.5, -0.3, -0.5], [0.5, 0.0, 0.5]);
     let (p, t) = uv_sphere([0.0, r + 0.03, 0.0], r, 12, 24);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(6),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let lattice = fit(&p, &t, 6);
     let mut w = World::new(no_gravity(&lattice, &m));
     w.set_contact_model(ContactModel::Hertz);
     w.add_collider(StaticCollider::new("table", &pc, &tc, 0.0).unwrap());
@@ -394,18 +352,9 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
             .unwrap()
             .install(|| {
                 let m = Material::preset("soft_rubber").unwrap();
-                let (pa, ta) = box_mesh([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1]);
+                let (pa, ta, lattice) = fitted_box([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1], 4);
                 let (pb, tb) = box_mesh([0.1, 0.07, -0.04], [0.3, 0.27, 0.16]);
                 let (pc, tc) = box_mesh([-1.0, -0.3, -1.0], [1.0, -0.01, 1.0]);
-                let lattice = fit_lattice(
-                    &pa,
-                    &ta,
-                    &FitSettings {
-                        resolution: Resolution::CellsAlongLongest(4),
-                        ..FitSettings::default()
-                    },
-                )
-                .unwrap();
                 let mut w = World::new(WorldSettings {
                     gravity: Vector3::new(0.0, -9.81, 0.0),
                     layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
@@ -459,18 +408,7 @@ fn crossed_edges_collide_through_the_edge_edge_test_alone() {
     let ridge = 0.1 * std::f64::consts::SQRT_2;
     let (pa, ta) = turned_cube([-ridge - 0.05, 0.0, 0.0], 2);
     let (pb, tb) = turned_cube([ridge + 0.05, 0.0, 0.0], 1);
-    let fit = |p: &[Point3<f64>], t: &[[u32; 3]]| {
-        fit_lattice(
-            p,
-            t,
-            &FitSettings {
-                resolution: Resolution::CellsAlongLongest(4),
-                ..FitSettings::default()
-            },
-        )
-        .unwrap()
-    };
-    let (la, lb) = (fit(&pa, &ta), fit(&pb, &tb));
+    let (la, lb) = (fit(&pa, &ta, 4), fit(&pb, &tb, 4));
     let mut w = World::new(no_gravity(&la, &m));
     let a = w.add_lattice_body("a", &la, &m, Vector3::new(1.5, 0.0, 0.0));
     let b = w.add_lattice_body("b", &lb, &m, Vector3::new(-1.5, 0.0, 0.0));
@@ -541,18 +479,7 @@ fn hertz_between_two_rigid_balls_matches_the_closed_form() {
     let r = 0.1;
     let (pa, ta) = uv_sphere([-r - 0.02, 0.0, 0.0], r, 12, 24);
     let (pb, tb) = uv_sphere([r + 0.02, 0.0, 0.0], r, 12, 24);
-    let fit = |p: &[Point3<f64>], t: &[[u32; 3]]| {
-        fit_lattice(
-            p,
-            t,
-            &FitSettings {
-                resolution: Resolution::CellsAlongLongest(6),
-                ..FitSettings::default()
-            },
-        )
-        .unwrap()
-    };
-    let la = fit(&pa, &ta);
+    let la = fit(&pa, &ta, 6);
     let mut w = World::new(no_gravity(&la, &m));
     w.set_contact_model(ContactModel::Hertz);
     let (a, _) = add_body(&mut w, "a", &pa, &ta, 6, &m, Vector3::new(1.0, 0.0, 0.0));

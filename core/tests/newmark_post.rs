@@ -2,10 +2,11 @@
 //! and its iteration counts in the frame diagnostics (issue 7).
 #![allow(clippy::unwrap_used)]
 
-use springbake_core::lattice::{fit_lattice, FitSettings, Resolution};
+mod support;
+
+use springbake_core::lattice::Lattice;
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
-use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{
     ContactLayer, DispersionMode, Integrator, Interpolation, Path, Plane, World, WorldSettings,
 };
@@ -67,17 +68,8 @@ fn the_fusion_model_keeps_the_chains_order_under_newmark() {
     }
 }
 
-fn cube() -> springbake_core::lattice::Lattice {
-    let (p, t) = box_mesh([0.0, 0.0, 0.0], [0.3, 0.3, 0.3]);
-    fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(3),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap()
+fn cube() -> Lattice {
+    support::fitted_box([0.0, 0.0, 0.0], [0.3, 0.3, 0.3], 3).2
 }
 
 #[test]

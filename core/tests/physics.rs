@@ -1,23 +1,17 @@
 //! Physics checks of the solver against closed forms and the papers (physics §2–7).
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution, SpringLayout};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{ContactLayer, DispersionMode, Plane, World, WorldSettings};
+use support::{fitted_box, floor_settings};
 
 fn cube_lattice(lo: [f64; 3], size: f64, cells: u32) -> Lattice {
-    let (p, t) = box_mesh(lo, [lo[0] + size, lo[1] + size, lo[2] + size]);
-    fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap()
+    fitted_box(lo, [lo[0] + size, lo[1] + size, lo[2] + size], cells).2
 }
 
 fn no_contact(gravity: f64) -> WorldSettings {
@@ -136,12 +130,8 @@ fn undamped_energy_drift_is_bounded_over_ten_seconds() {
 fn cube_dropped_on_the_floor_comes_to_rest() {
     let lattice = cube_lattice([0.0, 0.5, 0.0], 0.5, 6);
     let m = Material::preset("rubber").unwrap();
-    let layer = WorldSettings::default_layer(lattice.cell_size, &m, 0.5);
-    let mut w = World::new(WorldSettings {
-        planes: vec![floor(0.0)],
-        layer,
-        ..no_contact(9.81)
-    });
+    let mut w = World::new(floor_settings(&lattice, &m, 0.5));
+    let layer = w.settings.layer;
     w.add_lattice_body("cube", &lattice, &m, Vector3::zeros());
     let mut last = None;
     for f in 1..=72 {
@@ -340,12 +330,7 @@ fn run_with_threads(threads: usize) -> Vec<[u64; 3]> {
         let lattice = cube_lattice([0.0, 0.3, 0.0], 1.0, 15);
         assert!(lattice.node_count() >= 4096);
         let m = Material::preset("rubber").unwrap();
-        let layer = WorldSettings::default_layer(lattice.cell_size, &m, 0.4);
-        let mut w = World::new(WorldSettings {
-            planes: vec![floor(0.0)],
-            layer,
-            ..no_contact(9.81)
-        });
+        let mut w = World::new(floor_settings(&lattice, &m, 0.4));
         w.add_lattice_body("cube", &lattice, &m, Vector3::new(0.5, -6.0, 0.2));
         let mut energies = Vec::new();
         for f in 1..=4 {
@@ -389,12 +374,7 @@ fn scripted_manipulator_sweep_pushes_a_jelly_cube_away() {
     )
     .unwrap();
     let m = Material::preset("jelly").unwrap();
-    let layer = WorldSettings::default_layer(lattice.cell_size, &m, 0.4);
-    let mut w = World::new(WorldSettings {
-        planes: vec![floor(0.0)],
-        layer,
-        ..no_contact(9.81)
-    });
+    let mut w = World::new(floor_settings(&lattice, &m, 0.4));
     w.add_lattice_body("jelly", &lattice, &m, Vector3::zeros());
     // A vertical rod sweeping +x through the cube's centre line at 1 m/s.
     // Contact acts on lattice nodes, so the rod is at least a cell thick (a thinner rod slips

@@ -6,13 +6,15 @@
 // The counting allocator is the one unsafe item: a forwarding `GlobalAlloc`.
 #![allow(unsafe_code)]
 
-use springbake_core::lattice::{fit_lattice, surface_samples, FitSettings, Resolution};
+mod support;
+
+use springbake_core::lattice::surface_samples;
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
-use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{BodyHandle, Capsule, Plane, RigidBody, World, WorldSettings};
+use springbake_core::solver::{BodyHandle, Capsule, RigidBody, World};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use support::{fitted_box, floor_settings};
 
 struct Counting;
 
@@ -57,25 +59,9 @@ fn allocations_in(f: impl FnOnce()) -> u64 {
 /// the contacts (the product's set-up), on a one-thread pool so rayon's own bookkeeping for
 /// the pool is in place before counting.
 fn dropped_cube(drop_m: f64) -> World {
-    let (p, t) = box_mesh([0.0, drop_m, 0.0], [0.3, drop_m + 0.3, 0.3]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(6),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let (p, t, lattice) = fitted_box([0.0, drop_m, 0.0], [0.3, drop_m + 0.3, 0.3], 6);
     let m = Material::preset("jelly").unwrap();
-    let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
-        ..WorldSettings::default()
-    });
+    let mut w = World::new(floor_settings(&lattice, &m, 0.4));
     let body = w.add_lattice_body("cube", &lattice, &m, Vector3::new(0.0, -6.0, 0.0));
     let (samples, areas) = surface_samples(&p, &t, 0.5 * lattice.cell_size);
     w.add_contact_surface(body, &lattice, &samples, &areas);
@@ -146,16 +132,7 @@ fn constrained_rigid_and_volume_steps_allocate_nothing() {
     // volume preservation on the soft cube.
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let mut w = dropped_cube(0.05);
-    let (p, t) = box_mesh([0.6, 0.3, 0.0], [0.8, 0.5, 0.2]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(3),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let (_, _, lattice) = fitted_box([0.6, 0.3, 0.0], [0.8, 0.5, 0.2], 3);
     let m = Material::preset("rubber").unwrap();
     let block = w.add_lattice_body("block", &lattice, &m, Vector3::zeros());
     let range = w.bodies[block.0].nodes.clone();

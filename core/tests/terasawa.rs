@@ -3,14 +3,15 @@
 //! preservation of a jelly dropped on the floor.
 #![allow(clippy::unwrap_used)]
 
-use springbake_core::lattice::{fit_lattice, FitSettings, Resolution};
+mod support;
+
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
-use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{
     nearest_node, nodes_in_box, BodyHandle, DispersionMode, Integrator, Interpolation, Path, Plane,
     Wind, World, WorldSettings,
 };
+use support::{fitted_box, floor_settings};
 
 fn zero_g(integrator: Integrator) -> WorldSettings {
     WorldSettings {
@@ -310,25 +311,9 @@ fn flag_on_a_spline_pole_in_gusting_wind_runs_ten_seconds_within_twice_rest_leng
 /// 1.5 s at 60 fps and returns the volume over V0 at every frame and the largest relative
 /// volume drift of one substep before its correction.
 fn jelly_drop(preserve: Option<f64>, speed: f64) -> (Vec<f64>, f64) {
-    let (p, t) = box_mesh([0.0, 0.25, 0.0], [0.3, 0.55, 0.3]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(6),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let (_, _, lattice) = fitted_box([0.0, 0.25, 0.0], [0.3, 0.55, 0.3], 6);
     let m = Material::preset("jelly").unwrap();
-    let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
-        ..WorldSettings::default()
-    });
+    let mut w = World::new(floor_settings(&lattice, &m, 0.4));
     let body = w.add_lattice_body("jelly", &lattice, &m, Vector3::new(0.0, -speed, 0.0));
     let v0 = w.body_volume(body);
     assert!((v0 - 0.027).abs() < 0.01 * 0.027, "{v0}");
@@ -398,23 +383,9 @@ fn jelly_dropped_hard_keeps_its_volume_with_preservation() {
 fn newmark_surface_drop() -> (f64, Vec<u64>) {
     use springbake_core::lattice::surface_samples;
     use springbake_core::nalgebra::Point3;
-    let (p, t) = box_mesh([0.0, 0.1, 0.0], [0.3, 0.4, 0.3]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(4),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
+    let (p, t, lattice) = fitted_box([0.0, 0.1, 0.0], [0.3, 0.4, 0.3], 4);
     let m = Material::preset("rubber").unwrap();
     let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
         integrator: Integrator::newmark(),
         wind: Some(Wind {
             velocity: Vector3::new(1.0, 0.0, 0.0),
@@ -422,7 +393,7 @@ fn newmark_surface_drop() -> (f64, Vec<u64>) {
             gust_hz: 2.0,
             drag_per_s: 0.1,
         }),
-        ..WorldSettings::default()
+        ..floor_settings(&lattice, &m, 0.4)
     });
     let body = w.add_lattice_body("cube", &lattice, &m, Vector3::zeros());
     let (points, areas) = surface_samples(&p, &t, lattice.cell_size / 2.0);
@@ -486,19 +457,6 @@ fn newmark_body_rests_on_its_contact_surface_with_the_same_bits_on_any_thread_co
     assert!(one == all, "thread count changed the result");
 }
 
-fn box_lattice(hi: [f64; 3], cells: u32) -> springbake_core::lattice::Lattice {
-    let (p, t) = box_mesh([0.0, 0.0, 0.0], hi);
-    fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap()
-}
-
 fn largest_distance_change(w: &World, rest: &[Vector3<f64>]) -> f64 {
     let x = &w.nodes.position;
     let mut worst = 0.0f64;
@@ -515,7 +473,7 @@ fn largest_distance_change(w: &World, rest: &[Vector3<f64>]) -> f64 {
 fn rigid_box_tumbles_about_its_intermediate_axis_keeping_its_shape() {
     // A 0.4 × 0.2 × 0.1 m box spun mostly about its intermediate (y) axis in zero gravity:
     // the rotation is unstable and flips (Dzhanibekov), with L and the shape kept.
-    let lattice = box_lattice([0.4, 0.2, 0.1], 4);
+    let (_, _, lattice) = fitted_box([0.0, 0.0, 0.0], [0.4, 0.2, 0.1], 4);
     let m = Material::preset("rubber").unwrap();
     let mut w = World::new(zero_g(Integrator::SymplecticEuler));
     let body = w.add_lattice_body("box", &lattice, &m, Vector3::zeros());
@@ -573,7 +531,7 @@ fn rigid_box_tumbles_about_its_intermediate_axis_keeping_its_shape() {
 
 #[test]
 fn rigid_cube_dropped_on_the_floor_lands_and_keeps_its_shape() {
-    let lattice = box_lattice([0.2, 0.2, 0.2], 3);
+    let (_, _, lattice) = fitted_box([0.0, 0.0, 0.0], [0.2, 0.2, 0.2], 3);
     let m = Material::preset("rubber").unwrap();
     for integrator in [Integrator::SymplecticEuler, Integrator::newmark()] {
         let mut w = World::new(WorldSettings {
@@ -620,16 +578,9 @@ fn rigid_cube_dropped_on_the_floor_lands_and_keeps_its_shape() {
 /// Height of a 0.1 × 0.4 × 0.1 m soft-rubber column resting on the floor after 3 s, with its
 /// stiffness scaled by `scale` per axis; also checks an x edge and a y edge got their factor.
 fn column_height(scale: Vector3<f64>) -> f64 {
-    let lattice = box_lattice([0.1, 0.4, 0.1], 8);
+    let (_, _, lattice) = fitted_box([0.0, 0.0, 0.0], [0.1, 0.4, 0.1], 8);
     let m = Material::preset("soft_rubber").unwrap();
-    let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
-        ..WorldSettings::default()
-    });
+    let mut w = World::new(floor_settings(&lattice, &m, 0.4));
     let body = w.add_lattice_body("column", &lattice, &m, Vector3::zeros());
     let k0 = w.springs.stiffness.clone();
     w.scale_stiffness_per_axis(body, scale).unwrap();
