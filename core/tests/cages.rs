@@ -4,8 +4,10 @@
 //! per-region mass and stiffness.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_core::cage::{self, mesh_volume, Cage, Primitive};
-use springbake_core::lattice::{fit_lattice, surface_samples, FitSettings, Lattice, Resolution};
+use springbake_core::lattice::{surface_samples, Lattice};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Matrix3, Point3, Vector3};
 use springbake_core::shapes::{box_mesh, uv_sphere};
@@ -15,6 +17,7 @@ use springbake_core::solver::{
     nodes_in_box, BodyHandle, Integrator, Interpolation, Path, Plane, RigidBody, World,
     WorldSettings,
 };
+use support::{fitted_box, floor_settings};
 
 fn jelly() -> Material {
     Material::preset("jelly").unwrap()
@@ -275,16 +278,7 @@ fn an_icosahedron_cage_lands_and_rests_on_its_mesh() {
 }
 
 fn lattice_bar(lo: [f64; 3], hi: [f64; 3], cells: u32) -> Lattice {
-    let (p, t) = box_mesh(lo, hi);
-    fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap()
+    fitted_box(lo, hi, cells).2
 }
 
 fn centre_of_mass(w: &World, body: BodyHandle) -> Vector3<f64> {
@@ -301,12 +295,7 @@ fn a_particle_falls_exactly_and_keeps_its_shape() {
     for integrator in [Integrator::SymplecticEuler, Integrator::newmark()] {
         let mut w = World::new(WorldSettings {
             integrator,
-            planes: vec![Plane {
-                normal: Vector3::y(),
-                offset: 0.0,
-            }],
-            layer: WorldSettings::default_layer(lattice.cell_size, &jelly(), 0.8),
-            ..WorldSettings::default()
+            ..floor_settings(&lattice, &jelly(), 0.8)
         });
         let v0 = Vector3::new(1.5, 2.0, 0.0);
         let h = w.add_lattice_body("p", &lattice, &jelly(), v0);

@@ -2,26 +2,17 @@
 //! log the partner, the approach speed at first touch and the contact force.
 #![allow(clippy::unwrap_used)]
 
-use springbake_core::lattice::{fit_lattice, surface_samples, FitSettings, Lattice, Resolution};
+mod support;
+
+use springbake_core::lattice::{surface_samples, Lattice};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
-use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{
     ContactPartner, ContactRecord, Integrator, Plane, World, WorldSettings,
 };
 
 fn cube(lo: [f64; 3], size: f64) -> (Vec<Point3<f64>>, Vec<[u32; 3]>, Lattice) {
-    let (p, t) = box_mesh(lo, [lo[0] + size, lo[1] + size, lo[2] + size]);
-    let lattice = fit_lattice(
-        &p,
-        &t,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(4),
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
-    (p, t, lattice)
+    support::fitted_box(lo, [lo[0] + size, lo[1] + size, lo[2] + size], 4)
 }
 
 fn world(planes: Vec<Plane>, gravity: f64, lattice: &Lattice, m: &Material) -> World {
