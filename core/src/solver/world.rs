@@ -295,8 +295,14 @@ impl Prepared {
             + b(&self.chunk_floor)
             + b(&self.dispersion_scratch.corrections)
             + b(&self.dispersion_scratch.changed)
+            + b(&self.colouring.colour)
+            + b(&self.dispersion_scratch.log)
+            + b(&self.dispersion_scratch.candidates)
             + b(&self.capsules)
             + b(&self.block_near)
+            + b(&self.point_contact)
+            + b(&self.surface_force)
+            + b(&self.body_may_touch)
     }
 }
 
@@ -1166,10 +1172,10 @@ impl World {
         d.kinetic_energy + d.elastic_energy + d.gravity_energy
     }
 
-    /// Bytes held by the world's arrays (node state, springs, cells, and the prepared
-    /// adjacency, colouring and scratch buffers once the first step has run), counted from the
-    /// vectors' capacities. Heap bookkeeping and the lattice the world was built from are not
-    /// included.
+    /// Bytes held by the world's arrays (node state, springs, cells, display-surface contact
+    /// points, and the prepared adjacency, colouring and scratch buffers once the first step
+    /// has run), counted from the vectors' capacities. Heap bookkeeping, the lattice the world
+    /// was built from and the small per-body and per-constraint data are not included.
     pub fn solver_bytes(&self) -> usize {
         fn b<T>(v: &Vec<T>) -> usize {
             v.capacity() * std::mem::size_of::<T>()
@@ -1179,6 +1185,14 @@ impl World {
         let mut total = b(&n.position) + b(&n.velocity) + b(&n.mass) + b(&n.inv_mass);
         total += b(&s.a) + b(&s.b) + b(&s.rest_length) + b(&s.stiffness) + b(&s.damping);
         total += self.bodies.iter().map(|body| b(&body.cells)).sum::<usize>();
+        let sp = &self.surface;
+        total += b(&sp.nodes)
+            + b(&sp.weights)
+            + b(&sp.share)
+            + b(&sp.body_mass)
+            + b(&sp.body)
+            + b(&sp.reach)
+            + b(&self.node_contact);
         if let Some(p) = &self.prepared {
             total += p.bytes();
         }
