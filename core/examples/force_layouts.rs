@@ -128,6 +128,44 @@ fn to_soa(l: &Lattice, soa: &mut [Vec<f64>; 6]) {
     }
 }
 
+/// The six coordinate arrays' slices for the `m` nodes from `start`: sliced up front, so the
+/// row loops have no bounds checks left and vectorise.
+fn row_of(soa: &[Vec<f64>; 6], start: usize, m: usize) -> [&[f64]; 6] {
+    std::array::from_fn(|c| &soa[c][start..start + m])
+}
+
+/// Forces on the `own` row's nodes from the springs to the `far` row (one stencil direction,
+/// natural length `rest`), written into (`ADD = false`) or added to (`ADD = true`) `out`.
+#[inline(always)]
+fn row_forces<const ADD: bool>(
+    own: &[&[f64]; 6],
+    far: &[&[f64]; 6],
+    rest: f64,
+    out: &mut [Vec<f64>; 3],
+    m: usize,
+) {
+    let [ox, oy, oz] = out;
+    let (ox, oy, oz) = (&mut ox[..m], &mut oy[..m], &mut oz[..m]);
+    for j in 0..m {
+        let r = [
+            own[0][j] - far[0][j],
+            own[1][j] - far[1][j],
+            own[2][j] - far[2][j],
+        ];
+        let dv = [
+            own[3][j] - far[3][j],
+            own[4][j] - far[4][j],
+            own[5][j] - far[5][j],
+        ];
+        let fs = force(r, dv, rest);
+        if ADD {
+            (ox[j], oy[j], oz[j]) = (ox[j] + fs[0], oy[j] + fs[1], oz[j] + fs[2]);
+        } else {
+            (ox[j], oy[j], oz[j]) = (fs[0], fs[1], fs[2]);
+        }
+    }
+}
+
 /// 2: half stencil over rows, forces added to both ends.
 fn half_stencil(l: &Lattice, reps: usize) -> (f64, Vec<[f64; 3]>) {
     let (n, nodes) = (l.n, l.pos.len());
@@ -148,26 +186,9 @@ fn half_stencil(l: &Lattice, reps: usize) -> (f64, Vec<[f64; 3]>) {
                     let off = (d[0] + n as i64 * (d[1] + n as i64 * d[2])) as usize;
                     let m = n - d[0] as usize;
                     let rest = l.rest(d);
-                    // Row slices up front: bounds checks leave the loop, which vectorises.
-                    let own: [&[f64]; 6] = std::array::from_fn(|c| &soa[c][row..row + m]);
-                    let far: [&[f64]; 6] =
-                        std::array::from_fn(|c| &soa[c][row + off..row + off + m]);
-                    let [fx, fy, fz] = &mut row_force;
-                    let (fx, fy, fz) = (&mut fx[..m], &mut fy[..m], &mut fz[..m]);
-                    for j in 0..m {
-                        let r = [
-                            own[0][j] - far[0][j],
-                            own[1][j] - far[1][j],
-                            own[2][j] - far[2][j],
-                        ];
-                        let dv = [
-                            own[3][j] - far[3][j],
-                            own[4][j] - far[4][j],
-                            own[5][j] - far[5][j],
-                        ];
-                        let fs = force(r, dv, rest);
-                        (fx[j], fy[j], fz[j]) = (fs[0], fs[1], fs[2]);
-                    }
+                    let own = row_of(&soa, row, m);
+                    let far = row_of(&soa, row + off, m);
+                    row_forces::<false>(&own, &far, rest, &mut row_force, m);
                     for c in 0..3 {
                         for j in 0..m {
                             f[c][row + j] += row_force[c][j];
@@ -199,28 +220,13 @@ fn node_centric(l: &Lattice, reps: usize) -> (f64, Vec<[f64; 3]>) {
                 // One row of interior nodes at a time: the row and each neighbour row are
                 // contiguous, so the loop over x vectorises.
                 let (row, m) = (1 + n * (y + n * z), n - 2);
-                let own: [&[f64]; 6] = std::array::from_fn(|c| &soa[c][row..row + m]);
+                let own = row_of(&soa, row, m);
                 let mut acc = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
                 for d in &both {
                     let far_row =
                         (row as i64 + d[0] + n as i64 * (d[1] + n as i64 * d[2])) as usize;
-                    let far: [&[f64]; 6] = std::array::from_fn(|c| &soa[c][far_row..far_row + m]);
-                    let rest = l.rest(*d);
-                    let [ax, ay, az] = &mut acc;
-                    for j in 0..m {
-                        let r = [
-                            own[0][j] - far[0][j],
-                            own[1][j] - far[1][j],
-                            own[2][j] - far[2][j],
-                        ];
-                        let dv = [
-                            own[3][j] - far[3][j],
-                            own[4][j] - far[4][j],
-                            own[5][j] - far[5][j],
-                        ];
-                        let fs = force(r, dv, rest);
-                        (ax[j], ay[j], az[j]) = (ax[j] + fs[0], ay[j] + fs[1], az[j] + fs[2]);
-                    }
+                    let far = row_of(&soa, far_row, m);
+                    row_forces::<true>(&own, &far, l.rest(*d), &mut acc, m);
                 }
                 for j in 0..m {
                     out[row + j] = [acc[0][j], acc[1][j], acc[2][j]];
