@@ -45,13 +45,33 @@ pub use world::{BodyHandle, BodyInfo, World, WorldSettings};
 use nalgebra::Vector3;
 
 /// Node state, one entry per node of every body.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct NodeState {
     pub position: Vec<Vector3<f64>>,
     pub velocity: Vec<Vector3<f64>>,
     pub mass: Vec<f64>,
     /// 0 for pinned nodes.
     pub inv_mass: Vec<f64>,
+}
+
+impl Clone for NodeState {
+    fn clone(&self) -> Self {
+        NodeState {
+            position: self.position.clone(),
+            velocity: self.velocity.clone(),
+            mass: self.mass.clone(),
+            inv_mass: self.inv_mass.clone(),
+        }
+    }
+
+    /// Field by field into the existing buffers (the derived `clone_from` would allocate
+    /// new ones): the Newmark step copies the state every step.
+    fn clone_from(&mut self, source: &Self) {
+        self.position.clone_from(&source.position);
+        self.velocity.clone_from(&source.velocity);
+        self.mass.clone_from(&source.mass);
+        self.inv_mass.clone_from(&source.inv_mass);
+    }
 }
 
 impl NodeState {
