@@ -67,6 +67,20 @@ fn dropped_cube(drop_m: f64) -> World {
     w
 }
 
+/// Frames 1–6 of the dropped cube: the first frames grow every buffer (prepared arrays,
+/// dispersion scratch, contact log) through the same kinds of events as the counted frames,
+/// the impact included.
+fn warm_up_through_the_impact(w: &mut World) {
+    let mut corrections = 0;
+    for f in 1..=6 {
+        corrections += w
+            .advance_frame(1.0 / 24.0, f, &|| false)
+            .unwrap()
+            .dispersion_corrections;
+    }
+    assert!(corrections > 0, "the impact must need the fusion model");
+}
+
 #[test]
 fn steps_allocate_nothing_once_the_buffers_have_grown() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
@@ -76,16 +90,7 @@ fn steps_allocate_nothing_once_the_buffers_have_grown() {
         .unwrap();
     pool.install(|| {
         let mut w = dropped_cube(0.05);
-        // Warm-up: the first frames grow every buffer (prepared arrays, dispersion scratch,
-        // contact log) through the same kinds of events as the counted frames.
-        let mut corrections = 0;
-        for f in 1..=6 {
-            corrections += w
-                .advance_frame(1.0 / 24.0, f, &|| false)
-                .unwrap()
-                .dispersion_corrections;
-        }
-        assert!(corrections > 0, "the impact must need the fusion model");
+        warm_up_through_the_impact(&mut w);
         // Counted: the body bounces and comes to rest on its contact surface.
         let mut counted_depth = 0.0f64;
         let n = allocations_in(|| {
@@ -157,14 +162,7 @@ fn newmark_steps_allocate_nothing() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let mut w = dropped_cube(0.05);
     w.settings.integrator = Integrator::newmark();
-    let mut corrections = 0;
-    for f in 1..=6 {
-        corrections += w
-            .advance_frame(1.0 / 24.0, f, &|| false)
-            .unwrap()
-            .dispersion_corrections;
-    }
-    assert!(corrections > 0, "the impact must need the fusion model");
+    warm_up_through_the_impact(&mut w);
     let n = allocations_in(|| {
         for f in 7..=12 {
             w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
