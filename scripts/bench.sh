@@ -43,6 +43,14 @@ for row in sb["standard"]:
           f"{blender:.2f} s -> springbake is {blender / row['wall_s']:.2f}x faster "
           f"(inverted cells max {row['inverted_max']}, max penetration "
           f"{row['penetration_max']:.4f} m, layer {row['layer']:.4f} m)")
+# The issue-9 target (30x Blender) as a stepping rate: at this run's substep count (set by the
+# bound printed above), finishing in Blender's time / 30 needs this many node-steps per second.
+for row in sb["standard"]:
+    target_s = blender / 30.0
+    work = row["substeps"] * row["nodes"]
+    print(f"30x Blender = {target_s:.3f} s: at {row['substeps']} substeps of {row['nodes']} nodes that needs "
+          f"{work / target_s / 1e6:.0f} M node-steps/s; this run ({row['threads']} thread(s)) did "
+          f"{work / row['wall_s'] / 1e6:.1f} M")
 print(json.dumps({"springbake": sb["standard"], "blender": bl,
                   "ratio": {str(r["threads"]): round(blender / r["wall_s"], 3) for r in sb["standard"]}}))
 PYEOF

@@ -122,6 +122,8 @@ struct Standard {
     penetration_max: f64,
     layer: f64,
     nodes: usize,
+    /// The bound that sets the step (`SubstepChoice::limited_by`).
+    limited_by: &'static str,
 }
 
 /// The standard scene: 15 cells per side (16³ nodes), bottom at 1 m, 100 frames at 24 fps,
@@ -130,6 +132,8 @@ fn standard(threads: usize, trace: bool) -> Standard {
     pool(threads).install(|| {
         let mut w = cube_world(15, 1.0, true);
         let layer = w.settings.layer.thickness_m;
+        // What sets the substep count (the frames' counts can only rise above it, by speed).
+        let limited_by = w.choose_substeps(1.0 / 24.0).limited_by;
         let t0 = Instant::now();
         let mut inverted_max = 0;
         let mut penetration_max = 0.0f64;
@@ -162,6 +166,7 @@ fn standard(threads: usize, trace: bool) -> Standard {
             penetration_max,
             layer,
             nodes: w.nodes.len(),
+            limited_by,
         }
     })
 }
@@ -316,19 +321,21 @@ fn standard_rows() -> (Vec<String>, bool) {
         let pass = s.inverted_max == 0 && s.penetration_max < s.layer;
         ok &= pass;
         println!(
-            "  {threads} thread(s): {:.2} s wall, {} substeps, {} nodes, inverted cells max {}, \
-             max penetration {:.4} m (layer {:.4} m) {}",
+            "  {threads} thread(s): {:.2} s wall, {} substeps (step set by {}), {} nodes, \
+             {:.1} M node-steps/s, inverted cells max {}, max penetration {:.4} m (layer {:.4} m) {}",
             s.wall_s,
             s.substeps,
+            s.limited_by,
             s.nodes,
+            (s.substeps * s.nodes as u64) as f64 / s.wall_s / 1e6,
             s.inverted_max,
             s.penetration_max,
             s.layer,
             if pass { "OK" } else { "FAILED" }
         );
         std_rows.push(format!(
-            "{{\"threads\":{threads},\"wall_s\":{:.4},\"substeps\":{},\"inverted_max\":{},\"penetration_max\":{:.6},\"layer\":{:.6}}}",
-            s.wall_s, s.substeps, s.inverted_max, s.penetration_max, s.layer
+            "{{\"threads\":{threads},\"wall_s\":{:.4},\"substeps\":{},\"nodes\":{},\"limited_by\":\"{}\",\"inverted_max\":{},\"penetration_max\":{:.6},\"layer\":{:.6}}}",
+            s.wall_s, s.substeps, s.nodes, s.limited_by, s.inverted_max, s.penetration_max, s.layer
         ));
     }
     (std_rows, ok)
