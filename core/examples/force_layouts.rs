@@ -1,6 +1,6 @@
 //! What a regular-lattice ("stencil") layout could gain in the spring-force pass (issue 9):
 //! the same spring forces on an `N`³-node lattice with cell edges and one diagonal per face
-//! (the Table 1 layout the step benchmark uses), computed three ways on one thread:
+//! (the Table 1 layout the step benchmark uses), computed four ways on one thread:
 //!
 //! 1. as the solver does (`solver::forces`): node state as arrays of `Vector3`, springs as
 //!    index pairs, one force per spring into a buffer, then a per-node gather through a CSR
@@ -9,11 +9,14 @@
 //!    `Vector3` state every step, as a fast path inside the solver would have to), each spring
 //!    once per row and direction, its force added to both ends;
 //! 3. node-centric stencil: every spring evaluated from both ends, the sum kept per node
-//!    (no scatter, twice the arithmetic).
+//!    (no scatter, twice the arithmetic);
+//! 4. long rows: one loop per stencil direction over the whole lattice (`i` against
+//!    `i + offset`, pairs that wrap across a row masked out), forces into direction buffers,
+//!    then two contiguous add passes; also compiled for AVX-512 and chosen at run time.
 //!
-//! The three agree to rounding (printed). Findings on the 2-core dev machine are in
-//! docs/benchmarks.md: the layouts land within about ±25 % of each other, with or without
-//! AVX2, so a stencil fast path alone cannot lift the step to the issue's 40 M node-steps/s.
+//! All agree to rounding (printed; the AVX-512 long rows give the baseline long rows' bits,
+//! asserted). Findings on the 2-core dev machine are in docs/benchmarks.md: 1–3 land within
+//! about ±25 % of each other; long rows are about 1.5× the solver's pass, 2.5× with AVX-512.
 //!
 //! `cargo run --release -p springbake-core --example force_layouts [-- N]` (default N = 32).
 
@@ -206,6 +209,118 @@ fn half_stencil(l: &Lattice, reps: usize) -> (f64, Vec<[f64; 3]>) {
     (t0.elapsed().as_secs_f64() / reps as f64, out)
 }
 
+/// 4: long-row structure of arrays: per stencil direction one loop over the whole lattice
+/// (`i` and `i + offset` contiguous, springs that wrap across a row masked out by a per-node
+/// 0/1 factor), forces into three direction buffers, then two contiguous add passes. No short
+/// rows, no bounds checks in the arithmetic loop: the form a compiler vectorises best.
+fn long_rows(l: &Lattice, reps: usize, wide: bool) -> (f64, Vec<[f64; 3]>) {
+    let (n, nodes) = (l.n, l.pos.len());
+    let mut soa: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; nodes]);
+    let mut f: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; nodes]);
+    let mut t: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; nodes]);
+    let dirs: Vec<(usize, f64, Vec<f64>)> = FORWARD
+        .iter()
+        .map(|d| {
+            let off = (d[0] + n as i64 * (d[1] + n as i64 * d[2])) as usize;
+            let mask = (0..nodes - off)
+                .map(|i| {
+                    let p = [(i % n) as i64, ((i / n) % n) as i64, (i / n / n) as i64];
+                    let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+                    f64::from(u8::from(l.index(q).is_some()))
+                })
+                .collect();
+            (off, l.rest(*d), mask)
+        })
+        .collect();
+    let t0 = Instant::now();
+    for _ in 0..reps {
+        to_soa(l, &mut soa);
+        f.iter_mut().for_each(|c| c.fill(0.0));
+        for (off, rest, mask) in &dirs {
+            let m = nodes - off;
+            let own = row_of(&soa, 0, m);
+            let far = row_of(&soa, *off, m);
+            if wide {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `wide` is only set where `avx512_available` found the CPU features
+                // the function is compiled for.
+                #[allow(unsafe_code)]
+                unsafe {
+                    long_row_avx512(&own, &far, &mask[..m], *rest, &mut t, m)
+                };
+            } else {
+                long_row(&own, &far, &mask[..m], *rest, &mut t, m);
+            }
+            for c in 0..3 {
+                let (fc, tc) = (&mut f[c], &t[c][..m]);
+                for (a, b) in fc[..m].iter_mut().zip(tc) {
+                    *a += b;
+                }
+                for (a, b) in fc[*off..].iter_mut().zip(tc) {
+                    *a -= b;
+                }
+            }
+        }
+        black_box(&mut f);
+    }
+    let out = (0..nodes).map(|i| [f[0][i], f[1][i], f[2][i]]).collect();
+    (t0.elapsed().as_secs_f64() / reps as f64, out)
+}
+
+/// One direction of [`long_rows`]: the masked spring forces of the pairs `(j, j + offset)`.
+#[inline(always)]
+fn long_row(
+    own: &[&[f64]; 6],
+    far: &[&[f64]; 6],
+    mask: &[f64],
+    rest: f64,
+    t: &mut [Vec<f64>; 3],
+    m: usize,
+) {
+    let [tx, ty, tz] = t;
+    let (tx, ty, tz, mask) = (&mut tx[..m], &mut ty[..m], &mut tz[..m], &mask[..m]);
+    for j in 0..m {
+        let r = [
+            own[0][j] - far[0][j],
+            own[1][j] - far[1][j],
+            own[2][j] - far[2][j],
+        ];
+        let dv = [
+            own[3][j] - far[3][j],
+            own[4][j] - far[4][j],
+            own[5][j] - far[5][j],
+        ];
+        let fs = force(r, dv, rest);
+        (tx[j], ty[j], tz[j]) = (fs[0] * mask[j], fs[1] * mask[j], fs[2] * mask[j]);
+    }
+}
+
+/// [`long_row`] compiled for AVX-512 (8 lanes of f64). The same IEEE operations in the same
+/// order per spring (Rust never fuses a multiply and an add on its own), so the same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2")]
+fn long_row_avx512(
+    own: &[&[f64]; 6],
+    far: &[&[f64]; 6],
+    mask: &[f64],
+    rest: f64,
+    t: &mut [Vec<f64>; 3],
+    m: usize,
+) {
+    long_row(own, far, mask, rest, t, m)
+}
+
+fn avx512_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+            && is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
 /// 3: every spring from both ends, summed per node (interior nodes only, timed per node).
 fn node_centric(l: &Lattice, reps: usize) -> (f64, Vec<[f64; 3]>) {
     let (n, nodes) = (l.n, l.pos.len());
@@ -267,6 +382,8 @@ fn main() {
     let (t1, f1) = solver_like(&l, reps);
     let (t2, f2) = half_stencil(&l, reps);
     let (t3, f3) = node_centric(&l, reps);
+    let (t4, f4) = long_rows(&l, reps, false);
+    let wide = avx512_available().then(|| long_rows(&l, reps, true));
     let diff = |f: &[[f64; 3]]| {
         f1.iter()
             .zip(f)
@@ -275,11 +392,23 @@ fn main() {
             .fold(0.0f64, f64::max)
     };
     println!("{n}³ nodes, one thread, force pass only (M node-steps/s):");
-    for (name, t, d) in [
+    let mut rows = vec![
         ("solver layout (per spring + CSR gather)", t1, 0.0),
         ("half stencil, structure of arrays", t2, diff(&f2)),
         ("node-centric stencil (interior)", t3, diff(&f3)),
-    ] {
+        ("long rows, structure of arrays, masked", t4, diff(&f4)),
+    ];
+    if let Some((t5, f5)) = &wide {
+        // Same bits as the baseline long rows: the lanes do the same operations.
+        assert_eq!(
+            f5, &f4,
+            "the AVX-512 long rows differ from the baseline ones"
+        );
+        rows.push(("long rows, AVX-512 (detected at run time)", *t5, diff(f5)));
+    } else {
+        println!("  (no AVX-512 on this CPU: the long rows' AVX-512 variant is not run)");
+    }
+    for (name, t, d) in rows {
         println!(
             "  {name:<42} {:>7.3} ms/step {:>6.1} M  (largest difference from 1: {d:.1e} N)",
             t * 1e3,
