@@ -5,6 +5,7 @@
 //! adds gravity and contact and updates the velocity), so there are no racy scatters.
 
 use super::miyazaki1996_velocity_dispersion::{speed_floor_sq, DispersionMode};
+use super::stencil::StencilPlan;
 use super::{NodeState, SpringSet, PAR_CHUNK};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -19,8 +20,14 @@ pub(crate) struct Adjacency {
 
 impl Adjacency {
     pub fn new(nodes: usize, springs: &SpringSet) -> Adjacency {
+        Adjacency::filtered(nodes, springs, |_| true)
+    }
+
+    /// The lists of the springs `keep` accepts only.
+    pub fn filtered(nodes: usize, springs: &SpringSet, keep: impl Fn(usize) -> bool) -> Adjacency {
+        let kept: Vec<usize> = (0..springs.len()).filter(|&s| keep(s)).collect();
         let mut count = vec![0u32; nodes + 1];
-        for s in 0..springs.len() {
+        for &s in &kept {
             count[springs.a[s] as usize + 1] += 1;
             count[springs.b[s] as usize + 1] += 1;
         }
@@ -29,8 +36,8 @@ impl Adjacency {
         }
         let offsets = count.clone();
         let mut fill = count;
-        let mut links = vec![0u32; springs.len() * 2];
-        for s in 0..springs.len() {
+        let mut links = vec![0u32; kept.len() * 2];
+        for &s in &kept {
             let a = springs.a[s] as usize;
             let b = springs.b[s] as usize;
             links[fill[a] as usize] = (s as u32) * 2;
@@ -63,7 +70,13 @@ fn chunk_forces(
     first: usize,
     out: &mut [Vector3<f64>],
     mut floor: Option<(DispersionMode, f64, &mut [u8])>,
+    skip: Option<&StencilPlan>,
 ) -> f64 {
+    if let Some(plan) = skip {
+        if plan.covers_chunk(first / PAR_CHUNK) {
+            return f64::INFINITY;
+        }
+    }
     let (pos, vel) = (&nodes.position[..], &nodes.velocity[..]);
     let range = first..first + out.len();
     let (sa, sb) = (&springs.a[range.clone()], &springs.b[range.clone()]);
@@ -71,6 +84,9 @@ fn chunk_forces(
     let (k, d) = (&springs.stiffness[range.clone()], &springs.damping[range]);
     let mut min_floor = f64::INFINITY;
     for (j, f) in out.iter_mut().enumerate() {
+        if skip.is_some_and(|plan| plan.covers(first + j)) {
+            continue;
+        }
         let (a, b) = (sa[j] as usize, sb[j] as usize);
         let r = pos[a] - pos[b];
         let len_sq = r.norm_squared();
@@ -106,12 +122,14 @@ fn chunk_forces(
 
 /// Force on each spring's `a` end (the `b` end gets the opposite). Fixed chunks of
 /// [`PAR_CHUNK`] springs, one task each; each slot is written by its spring alone. With
-/// `floors`, also each spring's dispersion speed floor from the same squared length.
+/// `floors`, also each spring's dispersion speed floor from the same squared length. The
+/// springs `skip` takes (the stencil's) are left as they are.
 pub(crate) fn spring_forces(
     nodes: &NodeState,
     springs: &SpringSet,
     out: &mut [Vector3<f64>],
     floors: Option<FloorOutput>,
+    skip: Option<&StencilPlan>,
 ) {
     match floors {
         Some(FloorOutput {
@@ -131,13 +149,14 @@ pub(crate) fn spring_forces(
                     chunk * PAR_CHUNK,
                     out,
                     Some((mode, inv_dt_sq, flags)),
+                    skip,
                 );
             }),
         None => out
             .par_chunks_mut(PAR_CHUNK)
             .enumerate()
             .for_each(|(chunk, out)| {
-                chunk_forces(nodes, springs, chunk * PAR_CHUNK, out, None);
+                chunk_forces(nodes, springs, chunk * PAR_CHUNK, out, None, skip);
             }),
     }
 }

@@ -122,7 +122,7 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
     st.capsules
         .extend(world.manipulators.iter().map(|m| m.capsule_at(t)));
     st.capsules.extend(world.live_capsules.iter().copied());
-    spring_forces(&st.trial, &world.springs, &mut st.spring_force, None);
+    spring_forces(&st.trial, &world.springs, &mut st.spring_force, None, None);
     let has_contact = !settings.planes.is_empty() || !st.capsules.is_empty();
     let air = settings.wind.map(|w| (w, w.air_velocity(t)));
     let mut deepest = 0.0f64;
