@@ -139,6 +139,12 @@ impl StencilPlan {
         self.spring_flag[s] != NONE
     }
 
+    /// Whether the stencil evaluates every spring of the world (the index-list pass has
+    /// nothing to do).
+    pub fn covers_all(&self) -> bool {
+        self.chunk_covered.iter().all(|&c| c)
+    }
+
     /// Whether the stencil evaluates every spring of fixed chunk `chunk`.
     #[inline]
     pub fn covers_chunk(&self, chunk: usize) -> bool {

@@ -537,7 +537,11 @@ impl World {
             self.prepared = Some(Prepared {
                 adjacency,
                 colouring,
-                spring_force: vec![Vector3::zeros(); self.springs.len()],
+                // Not needed when the stencil takes every spring.
+                spring_force: match &stencil {
+                    Some(plan) if plan.covers_all() => Vec::new(),
+                    _ => vec![Vector3::zeros(); self.springs.len()],
+                },
                 chunk_contact: vec![(0.0, Vector3::zeros()); n.div_ceil(PAR_CHUNK)],
                 chunk_spread: vec![0.0; n.div_ceil(PAR_CHUNK)],
                 exceptional: vec![0; self.springs.len()],
@@ -819,18 +823,24 @@ impl World {
 
         let hinted = dispersion != DispersionMode::Off && p.hints_enabled;
         let stencil = p.stencil.as_mut().filter(|_| p.stencil_enabled);
-        spring_forces(
-            nodes,
-            springs,
-            &mut p.spring_force,
-            hinted.then_some(FloorOutput {
-                mode: dispersion,
-                inv_dt_sq: 1.0 / (dt * dt),
-                exceptional: &mut p.exceptional,
-                chunk_floor: &mut p.chunk_floor,
-            }),
-            stencil.as_deref(),
-        );
+        if stencil.as_ref().is_none_or(|plan| !plan.covers_all()) {
+            // (Grows only when a test has switched the stencil off.)
+            p.spring_force.resize(springs.len(), Vector3::zeros());
+            spring_forces(
+                nodes,
+                springs,
+                &mut p.spring_force,
+                hinted.then_some(FloorOutput {
+                    mode: dispersion,
+                    inv_dt_sq: 1.0 / (dt * dt),
+                    exceptional: &mut p.exceptional,
+                    chunk_floor: &mut p.chunk_floor,
+                }),
+                stencil.as_deref(),
+            );
+        } else if hinted {
+            p.chunk_floor.fill(f64::INFINITY);
+        }
         // The lattice bodies' springs (skipped above), with the same per-spring hints.
         let stencil = stencil.map(|plan| {
             let floor = hinted.then_some(FloorInput {
