@@ -43,9 +43,10 @@ pub struct LatticeGrid {
 #[derive(Debug, Clone)]
 struct Direction {
     offset: usize,
-    /// The spring from slot `j` to slot `j + offset` (`NONE`: no spring).
-    spring: Vec<u32>,
-    /// The spring's parameters (rest length 0 where there is no spring).
+    /// Near slots: `slots − offset`.
+    len: usize,
+    /// The parameters of the spring from slot `j` to slot `j + offset` (rest length 0 where
+    /// there is none; the plan's `spring_flag` says which spring it is).
     rest: Vec<f64>,
     stiffness: Vec<f64>,
     damping: Vec<f64>,
@@ -214,7 +215,7 @@ impl StencilPlan {
                 let dirs: usize = body
                     .directions
                     .iter()
-                    .map(|d| b(&d.spring) + b(&d.rest) + b(&d.stiffness) + b(&d.damping))
+                    .map(|d| b(&d.rest) + b(&d.stiffness) + b(&d.damping))
                     .sum();
                 dirs + b(&body.force)
                     + b(&body.node_of_slot)
@@ -292,7 +293,7 @@ fn place_body(
         let len = slots - offset;
         directions.push(Direction {
             offset,
-            spring: vec![NONE; len],
+            len,
             rest: vec![0.0; len],
             stiffness: vec![0.0; len],
             damping: vec![0.0; len],
@@ -302,10 +303,9 @@ fn place_body(
         let dir = &mut directions[d];
         // A spring of no length (or NaN) could not be told from an empty slot.
         let has_length = springs.rest_length[s] > 0.0;
-        if offset != dir.offset || dir.spring[near] != NONE || !has_length {
+        if offset != dir.offset || dir.rest[near] != 0.0 || !has_length {
             return None;
         }
-        dir.spring[near] = s as u32;
         dir.rest[near] = springs.rest_length[s];
         dir.stiffness[near] = springs.stiffness[s];
         dir.damping[near] = springs.damping[s];
@@ -322,13 +322,9 @@ fn place_body(
     stencil.force = vec![0.0; 3 * stencil.blocks()];
     plan.flags
         .extend(std::iter::repeat_n(0u8, stencil.blocks()));
-    for (d, dir) in stencil.directions.iter().enumerate() {
-        for (j, &s) in dir.spring.iter().enumerate() {
-            if s != NONE {
-                let at = stencil.flag_start + stencil.block_index(d, j, 1);
-                plan.spring_flag[s as usize] = at as u32;
-            }
-        }
+    for &(s, d, near, _) in &placed {
+        let at = stencil.flag_start + stencil.block_index(d, near, 1);
+        plan.spring_flag[s] = at as u32;
     }
     Some(stencil)
 }
@@ -410,7 +406,7 @@ impl StencilBody {
                     .chunks_mut(3 * PAR_CHUNK)
                     .zip(flags.chunks_mut(PAR_CHUNK));
                 for (dir, (block, flag)) in dirs.iter().zip(blocks) {
-                    let m = dir.spring.len().saturating_sub(lo).min(PAR_CHUNK);
+                    let m = dir.len.saturating_sub(lo).min(PAR_CHUNK);
                     if m == 0 {
                         continue;
                     }
@@ -709,29 +705,26 @@ mod tests {
         // Each spring's force on its near end: the index lists' force on its `a` end, or
         // that force's negation when the near end is `b`.
         let body = &plan.bodies[0];
-        let mut checked = 0;
-        for (d, dir) in body.directions.iter().enumerate() {
-            for (j, &s) in dir.spring.iter().enumerate() {
-                if s == NONE {
-                    continue;
-                }
-                let at = body.block_index(d, j, 3);
-                let f = Vector3::new(
-                    body.force[at],
-                    body.force[at + PAR_CHUNK],
-                    body.force[at + 2 * PAR_CHUNK],
-                );
-                let near_is_a = body.node_of_slot[j] == springs.a[s as usize];
-                let want = if near_is_a {
-                    expected[s as usize]
-                } else {
-                    -expected[s as usize]
-                };
-                assert_eq!(f, want, "spring {s}");
-                checked += 1;
-            }
+        let n_dirs = body.directions.len();
+        for (s, &on_a) in expected.iter().enumerate() {
+            // The spring's (direction, near slot) from its flag's place in the blocks.
+            let q = plan.spring_flag[s] as usize - body.flag_start;
+            let (block, w) = (q / PAR_CHUNK, q % PAR_CHUNK);
+            let (d, j) = (block % n_dirs, block / n_dirs * PAR_CHUNK + w);
+            assert!(body.directions[d].rest[j] > 0.0);
+            let at = body.block_index(d, j, 3);
+            let f = Vector3::new(
+                body.force[at],
+                body.force[at + PAR_CHUNK],
+                body.force[at + 2 * PAR_CHUNK],
+            );
+            let want = if body.node_of_slot[j] == springs.a[s] {
+                on_a
+            } else {
+                -on_a
+            };
+            assert_eq!(f, want, "spring {s}");
         }
-        assert_eq!(checked, springs.len());
 
         // Per node, the sums agree to rounding (they add in another order).
         let adjacency = Adjacency::new(nodes.len(), springs);
