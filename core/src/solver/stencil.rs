@@ -398,16 +398,21 @@ impl StencilBody {
         let n_dirs = dirs.len();
         let [sx, sy, sz] = &mut self.sums;
         for phase in 0..2 {
+            // Pairs of chunks from chunk `phase` on: each task owns a pair and works on the
+            // first chunk of it (its flags and floor come first in its pieces too).
             let start = (phase * chunk).min(sx.len());
+            let flag_start = (phase * n_dirs * chunk).min(flags.len());
+            let floor_start = phase.min(chunk_floor.len());
             sx[start..]
                 .par_chunks_mut(2 * chunk)
                 .zip(sy[start..].par_chunks_mut(2 * chunk))
                 .zip(sz[start..].par_chunks_mut(2 * chunk))
-                .zip(flags.par_chunks_mut(n_dirs * chunk).skip(phase).step_by(2))
-                .zip(chunk_floor.par_iter_mut().skip(phase).step_by(2))
+                .zip(flags[flag_start..].par_chunks_mut(2 * n_dirs * chunk))
+                .zip(chunk_floor[floor_start..].par_chunks_mut(2))
                 .enumerate()
-                .for_each(|(k, ((((sx, sy), sz), flags), min_floor))| {
+                .for_each(|(k, ((((sx, sy), sz), flags), floors))| {
                     let lo = (2 * k + phase) * chunk;
+                    let min_floor = &mut floors[0];
                     *min_floor = f64::INFINITY;
                     for (dir, flag) in dirs.iter().zip(flags.chunks_mut(chunk)) {
                         let m = dir.len.saturating_sub(lo).min(chunk);
