@@ -10,14 +10,16 @@
 //! pairs that wrap across a row) have rest length 0 and give no force.
 //!
 //! Per spring the arithmetic is exactly the index-list pass's (`forces::chunk_forces`), also
-//! for the dispersion's speed floors and flags, so per-spring values agree bit for bit. A
-//! node's sum runs in a different order: first its near ends (direction order), then its far
-//! ends (direction order). Every loop runs over fixed slot chunks, so the result does not
-//! depend on the thread count.
+//! for the dispersion's speed floors and flags, so per-spring values agree bit for bit. The
+//! loop adds each force to its near end's sum and takes it off its far end's; slot chunks are
+//! longer than the longest offset, so the even chunks run side by side, then the odd ones,
+//! and no slot has two writers. A node's sum therefore adds in another order than the index
+//! lists' gather, one fixed by the grid alone: the result does not depend on the thread
+//! count.
 //!
 //! Springs a body cannot place (a body with more than [`MAX_DIRECTIONS`] directions, two
 //! springs on one slot pair, a grid much larger than the body) leave that body to the index
-//! lists, as are springs outside lattice bodies (joints).
+//! lists, as do springs outside lattice bodies (joints, cages).
 
 use super::miyazaki1996_velocity_dispersion::DispersionMode;
 use super::world::BodyInfo;
@@ -191,8 +193,8 @@ impl StencilPlan {
             });
     }
 
-    /// The stencil springs' force on world node `i` (`None`: not a stencil node): its near
-    /// ends in direction order, then its far ends in direction order.
+    /// This step's force of the stencil springs on world node `i` (`None`: not a stencil
+    /// node).
     #[inline]
     pub fn node_force(&self, i: usize) -> Option<Vector3<f64>> {
         let (b, slot) = self.site[i];
