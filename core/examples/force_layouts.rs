@@ -137,6 +137,22 @@ fn row_of(soa: &[Vec<f64>; 6], start: usize, m: usize) -> [&[f64]; 6] {
     std::array::from_fn(|c| &soa[c][start..start + m])
 }
 
+/// The force on node `j` of the `own` row from its spring to node `j` of the `far` row.
+#[inline(always)]
+fn pair_force(own: &[&[f64]; 6], far: &[&[f64]; 6], j: usize, rest: f64) -> [f64; 3] {
+    let r = [
+        own[0][j] - far[0][j],
+        own[1][j] - far[1][j],
+        own[2][j] - far[2][j],
+    ];
+    let dv = [
+        own[3][j] - far[3][j],
+        own[4][j] - far[4][j],
+        own[5][j] - far[5][j],
+    ];
+    force(r, dv, rest)
+}
+
 /// Forces on the `own` row's nodes from the springs to the `far` row (one stencil direction,
 /// natural length `rest`), written into (`ADD = false`) or added to (`ADD = true`) `out`.
 #[inline(always)]
@@ -150,17 +166,7 @@ fn row_forces<const ADD: bool>(
     let [ox, oy, oz] = out;
     let (ox, oy, oz) = (&mut ox[..m], &mut oy[..m], &mut oz[..m]);
     for j in 0..m {
-        let r = [
-            own[0][j] - far[0][j],
-            own[1][j] - far[1][j],
-            own[2][j] - far[2][j],
-        ];
-        let dv = [
-            own[3][j] - far[3][j],
-            own[4][j] - far[4][j],
-            own[5][j] - far[5][j],
-        ];
-        let fs = force(r, dv, rest);
+        let fs = pair_force(own, far, j, rest);
         if ADD {
             (ox[j], oy[j], oz[j]) = (ox[j] + fs[0], oy[j] + fs[1], oz[j] + fs[2]);
         } else {
@@ -242,7 +248,7 @@ fn long_rows(l: &Lattice, reps: usize, wide: bool) -> (f64, Vec<[f64; 3]>) {
             let far = row_of(&soa, *off, m);
             if wide {
                 #[cfg(target_arch = "x86_64")]
-                // SAFETY: `wide` is only set where `avx512_available` found the CPU features
+                // SAFETY: `wide` is only set where `stencil::avx512_available` found the CPU features
                 // the function is compiled for.
                 #[allow(unsafe_code)]
                 unsafe {
@@ -280,17 +286,7 @@ fn long_row(
     let [tx, ty, tz] = t;
     let (tx, ty, tz, mask) = (&mut tx[..m], &mut ty[..m], &mut tz[..m], &mask[..m]);
     for j in 0..m {
-        let r = [
-            own[0][j] - far[0][j],
-            own[1][j] - far[1][j],
-            own[2][j] - far[2][j],
-        ];
-        let dv = [
-            own[3][j] - far[3][j],
-            own[4][j] - far[4][j],
-            own[5][j] - far[5][j],
-        ];
-        let fs = force(r, dv, rest);
+        let fs = pair_force(own, far, j, rest);
         (tx[j], ty[j], tz[j]) = (fs[0] * mask[j], fs[1] * mask[j], fs[2] * mask[j]);
     }
 }
@@ -308,17 +304,6 @@ fn long_row_avx512(
     m: usize,
 ) {
     long_row(own, far, mask, rest, t, m)
-}
-
-fn avx512_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        is_x86_feature_detected!("avx512f")
-            && is_x86_feature_detected!("avx512vl")
-            && is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    false
 }
 
 /// 3: every spring from both ends, summed per node (interior nodes only, timed per node).
@@ -383,7 +368,8 @@ fn main() {
     let (t2, f2) = half_stencil(&l, reps);
     let (t3, f3) = node_centric(&l, reps);
     let (t4, f4) = long_rows(&l, reps, false);
-    let wide = avx512_available().then(|| long_rows(&l, reps, true));
+    let wide =
+        springbake_core::solver::stencil::avx512_available().then(|| long_rows(&l, reps, true));
     let diff = |f: &[[f64; 3]]| {
         f1.iter()
             .zip(f)

@@ -45,8 +45,6 @@ pub struct LatticeGrid {
 #[derive(Debug, Clone)]
 struct Direction {
     offset: usize,
-    /// Near slots: `slots − offset`.
-    len: usize,
     /// The parameters of the spring from slot `j` to slot `j + offset` (rest length 0 where
     /// there is none; the plan's `spring_flag` says which spring it is).
     rest: Vec<f64>,
@@ -290,7 +288,6 @@ fn place_body(
         let len = slots - offset;
         directions.push(Direction {
             offset,
-            len,
             rest: vec![0.0; len],
             stiffness: vec![0.0; len],
             damping: vec![0.0; len],
@@ -417,7 +414,7 @@ impl StencilBody {
                     let min_floor = &mut floors[0];
                     *min_floor = f64::INFINITY;
                     for (dir, flag) in dirs.iter().zip(flags.chunks_mut(chunk)) {
-                        let m = dir.len.saturating_sub(lo).min(chunk);
+                        let m = dir.rest.len().saturating_sub(lo).min(chunk);
                         if m == 0 {
                             continue;
                         }
@@ -488,8 +485,8 @@ fn run_kernel(args: &KernelArgs, out: KernelOut, floor: Option<FloorInput>, wide
     }
 }
 
-/// Whether this CPU runs the AVX-512 kernel (checked once).
-pub(crate) fn avx512_available() -> bool {
+/// Whether this CPU runs the AVX-512 kernel: AVX-512F, AVX-512VL and AVX2 (checked once).
+pub fn avx512_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         static WIDE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
@@ -702,7 +699,7 @@ mod tests {
             .directions
             .iter()
             .map(|dir| {
-                let m = dir.len;
+                let m = dir.rest.len();
                 let mut record: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; m]);
                 let mut sums: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; body.slots()]);
                 let mut flag = vec![0u8; m];
