@@ -345,14 +345,9 @@ fn main() {
         .and_then(|a| a.parse().ok())
         .unwrap_or(32)
         .max(3);
-    // A jittered lattice with random velocities (a deterministic LCG).
-    let mut seed = 1u64;
-    let mut rnd = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    // A jittered lattice with random velocities (seeded: the same lattice every run).
+    let mut rng = fastrand::Rng::with_seed(1);
+    let mut rnd = move || rng.f64() - 0.5;
     let cell = 1.0 / (n - 1) as f64;
     let nodes = n.pow(3);
     let pos = (0..nodes)

@@ -626,13 +626,8 @@ mod tests {
         let m = Material::preset("rubber").unwrap();
         let mut w = World::new(WorldSettings::default());
         w.add_lattice_body("ball", &lattice, &m, Vector3::zeros());
-        let mut seed = 7u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = fastrand::Rng::with_seed(7);
+        let mut rnd = move || rng.f64() - 0.5;
         let cell = lattice.cell_size;
         for i in 0..w.nodes.len() {
             // Up to ±25 % of a cell: some springs leave the dispersion's floor band.
