@@ -85,6 +85,17 @@ pub(crate) struct StencilPlan {
     flags: Vec<u8>,
     /// Per fixed slot chunk of each body (bodies one after another): the smallest floor².
     chunk_floor: Vec<f64>,
+    /// Per fixed slot chunk of each body: 1 where some spring's flag is 1.
+    chunk_flagged: Vec<u8>,
+}
+
+/// What [`StencilPlan::forces`] found for the velocity dispersion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StencilFloors {
+    /// The smallest speed floor² of the springs flagged 0.
+    pub least: f64,
+    /// Whether any spring is flagged 1 (only then do the flags need copying out).
+    pub flagged: bool,
 }
 
 /// What the spring pass computes for the velocity dispersion: the floor mode and 1/ΔT².
@@ -108,6 +119,7 @@ impl StencilPlan {
             chunk_covered: Vec::new(),
             flags: Vec::new(),
             chunk_floor: Vec::new(),
+            chunk_flagged: Vec::new(),
         };
         for body in bodies {
             let Some(grid) = &body.grid else { continue };
@@ -122,6 +134,8 @@ impl StencilPlan {
             }
             plan.chunk_floor
                 .extend(std::iter::repeat_n(f64::INFINITY, stencil.chunk_count()));
+            plan.chunk_flagged
+                .extend(std::iter::repeat_n(0, stencil.chunk_count()));
             plan.bodies.push(stencil);
         }
         if plan.bodies.is_empty() {
@@ -154,27 +168,39 @@ impl StencilPlan {
     }
 
     /// This step's spring forces of every stencil body; with `floor`, also each spring's
-    /// dispersion flag. Returns the smallest speed floor² of the springs flagged 0.
-    pub fn forces(&mut self, nodes: &NodeState, floor: Option<FloorInput>) -> f64 {
+    /// dispersion flag (kept here: [`StencilPlan::write_flags`] copies them out).
+    pub fn forces(&mut self, nodes: &NodeState, floor: Option<FloorInput>) -> StencilFloors {
         self.forces_with(nodes, floor, avx512_available())
     }
 
     /// [`StencilPlan::forces`] with the AVX-512 kernel (`wide`, only where available) or the
     /// baseline one.
-    fn forces_with(&mut self, nodes: &NodeState, floor: Option<FloorInput>, wide: bool) -> f64 {
+    fn forces_with(
+        &mut self,
+        nodes: &NodeState,
+        floor: Option<FloorInput>,
+        wide: bool,
+    ) -> StencilFloors {
         let mut floors = &mut self.chunk_floor[..];
+        let mut flagged = &mut self.chunk_flagged[..];
         let mut flags = &mut self.flags[..];
         for body in &mut self.bodies {
             let (body_floors, rest) = floors.split_at_mut(body.chunk_count());
             floors = rest;
+            let (body_flagged, rest) = flagged.split_at_mut(body.chunk_count());
+            flagged = rest;
             let (body_flags, rest) = flags.split_at_mut(body.blocks());
             flags = rest;
             body.copy_state(nodes);
-            body.forces(body_flags, body_floors, floor, wide);
+            body.forces(body_flags, (body_floors, body_flagged), floor, wide);
         }
-        self.chunk_floor
-            .iter()
-            .fold(f64::INFINITY, |m, &f| m.min(f))
+        StencilFloors {
+            least: self
+                .chunk_floor
+                .iter()
+                .fold(f64::INFINITY, |m, &f| m.min(f)),
+            flagged: self.chunk_flagged.contains(&1),
+        }
     }
 
     /// Copy this step's flags of the stencil's springs into the per-spring `exceptional`.
@@ -228,6 +254,7 @@ impl StencilPlan {
             + b(&self.chunk_covered)
             + b(&self.flags)
             + b(&self.chunk_floor)
+            + b(&self.chunk_flagged)
     }
 }
 
@@ -389,7 +416,7 @@ impl StencilBody {
     fn forces(
         &mut self,
         flags: &mut [u8],
-        chunk_floor: &mut [f64],
+        (chunk_floor, chunk_flagged): (&mut [f64], &mut [u8]),
         floor: Option<FloorInput>,
         wide: bool,
     ) {
@@ -408,11 +435,13 @@ impl StencilBody {
                 .zip(sz[start..].par_chunks_mut(2 * chunk))
                 .zip(flags[flag_start..].par_chunks_mut(2 * n_dirs * chunk))
                 .zip(chunk_floor[floor_start..].par_chunks_mut(2))
+                .zip(chunk_flagged[floor_start..].par_chunks_mut(2))
                 .enumerate()
-                .for_each(|(k, ((((sx, sy), sz), flags), floors))| {
+                .for_each(|(k, (((((sx, sy), sz), flags), floors), flagged))| {
                     let lo = (2 * k + phase) * chunk;
-                    let min_floor = &mut floors[0];
+                    let (min_floor, any_flag) = (&mut floors[0], &mut flagged[0]);
                     *min_floor = f64::INFINITY;
+                    *any_flag = 0;
                     for (dir, flag) in dirs.iter().zip(flags.chunks_mut(chunk)) {
                         let m = dir.rest.len().saturating_sub(lo).min(chunk);
                         if m == 0 {
@@ -432,7 +461,9 @@ impl StencilBody {
                             offset: dir.offset,
                             record: None,
                         };
-                        *min_floor = min_floor.min(run_kernel(&args, out, floor, wide));
+                        let (least, flagged) = run_kernel(&args, out, floor, wide);
+                        *min_floor = min_floor.min(least);
+                        *any_flag |= flagged;
                     }
                 });
         }
@@ -458,7 +489,14 @@ struct KernelOut<'a> {
     record: Option<[&'a mut [f64]; 3]>,
 }
 
-fn run_kernel(args: &KernelArgs, out: KernelOut, floor: Option<FloorInput>, wide: bool) -> f64 {
+/// The kernel for this CPU; returns the smallest floor² of the springs flagged 0 and 1 where
+/// some spring is flagged 1.
+fn run_kernel(
+    args: &KernelArgs,
+    out: KernelOut,
+    floor: Option<FloorInput>,
+    wide: bool,
+) -> (f64, u8) {
     let (c1, cap) = match floor {
         Some(FloorInput {
             mode: DispersionMode::Bounded,
@@ -504,20 +542,26 @@ pub fn avx512_available() -> bool {
 /// multiply and an add by itself), so the same bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2")]
-fn kernel_avx512<const FLOOR: bool>(args: &KernelArgs, out: KernelOut, c1: f64, cap: f64) -> f64 {
+fn kernel_avx512<const FLOOR: bool>(
+    args: &KernelArgs,
+    out: KernelOut,
+    c1: f64,
+    cap: f64,
+) -> (f64, u8) {
     kernel::<FLOOR>(args, out, c1, cap)
 }
 
 /// Spring forces on the near ends (as `forces::chunk_forces` computes them, bit for bit),
-/// added to the near ends' sums and taken off the far ends'; with `FLOOR`, each spring's dispersion flag and the smallest
-/// speed floor² (as `speed_floor_sq`). Slots without a spring (rest 0) give zero and flag 0.
+/// added to the near ends' sums and taken off the far ends'; with `FLOOR`, each spring's
+/// dispersion flag, the smallest speed floor² (as `speed_floor_sq`) and whether any flag is 1.
+/// Slots without a spring (rest 0) give zero and flag 0.
 ///
 /// The arithmetic loop writes only to local blocks, copied out after it: the compiler then
 /// needs no run-time overlap checks between the two dozen slices, which would keep it from
 /// vectorising the loop (measured: passing the outputs as separate `&mut` parameters
 /// instead was slower).
 #[inline(always)]
-fn kernel<const FLOOR: bool>(args: &KernelArgs, out: KernelOut, c1: f64, cap: f64) -> f64 {
+fn kernel<const FLOOR: bool>(args: &KernelArgs, out: KernelOut, c1: f64, cap: f64) -> (f64, u8) {
     const BLOCK: usize = 256;
     let m = args.rest.len();
     let (near, far) = (args.near.map(|a| &a[..m]), args.far.map(|a| &a[..m]));
@@ -529,6 +573,7 @@ fn kernel<const FLOOR: bool>(args: &KernelArgs, out: KernelOut, c1: f64, cap: f6
         mut record,
     } = out;
     let mut min_floor = f64::INFINITY;
+    let mut any_flag = 0u8;
     // Every block fills `[..n]` of these before reading it.
     let mut f = [[0.0f64; BLOCK]; 3];
     let mut floors = [f64::INFINITY; BLOCK];
@@ -590,9 +635,10 @@ fn kernel<const FLOOR: bool>(args: &KernelArgs, out: KernelOut, c1: f64, cap: f6
         if FLOOR {
             flag[start..start + n].copy_from_slice(&flags[..n]);
             min_floor = floors[..n].iter().fold(min_floor, |m, &f| m.min(f));
+            any_flag = flags[..n].iter().fold(any_flag, |a, &f| a | f);
         }
     }
-    min_floor
+    (min_floor, any_flag)
 }
 
 #[cfg(test)]
@@ -677,13 +723,14 @@ mod tests {
             }),
             None,
         );
-        let least = plan.forces_with(nodes, Some(floor), false);
+        let found = plan.forces_with(nodes, Some(floor), false);
         let csr_least = chunk_floor.iter().fold(f64::INFINITY, |m, &f| m.min(f));
-        assert_eq!(least, csr_least);
+        assert_eq!(found.least, csr_least);
         let mut flags = vec![7u8; springs.len()];
         plan.write_flags(&mut flags);
         assert_eq!(flags, exceptional);
         assert!(exceptional.contains(&0) && exceptional.contains(&1));
+        assert!(found.flagged);
 
         // Each spring's force on its near end (the kernel run once more over each whole
         // direction, keeping every force): the index lists' force on its `a` end, or that

@@ -847,15 +847,15 @@ impl World {
                 mode: dispersion,
                 inv_dt_sq: 1.0 / (dt * dt),
             });
-            let least = plan.forces(nodes, floor);
+            let found = plan.forces(nodes, floor);
             if hinted {
-                plan.write_flags(&mut p.exceptional);
                 if let Some(first) = p.chunk_floor.first_mut() {
-                    *first = first.min(least);
+                    *first = first.min(found.least);
                 }
             }
-            &*plan
+            (&*plan, found.flagged)
         });
+        let (stencil, stencil_flagged) = stencil.map_or((None, false), |(plan, f)| (Some(plan), f));
         let reference = nodes
             .velocity
             .first()
@@ -1102,9 +1102,27 @@ impl World {
                     .iter()
                     .fold(0.0f64, |m, &w| if w > m || w.is_nan() { w } else { m });
             let floor = p.chunk_floor.iter().fold(f64::INFINITY, |m, &f| m.min(f));
+            let uniform = 4.0 * spread <= floor;
+            // The flags are read only when motion is uniform: the stencil's are copied out
+            // then, and only when one is set if it takes every spring.
+            let flagged = uniform
+                && match stencil {
+                    Some(plan) if plan.covers_all() => {
+                        if stencil_flagged {
+                            plan.write_flags(&mut p.exceptional);
+                        }
+                        stencil_flagged
+                    }
+                    Some(plan) => {
+                        plan.write_flags(&mut p.exceptional);
+                        p.exceptional.contains(&1)
+                    }
+                    None => p.exceptional.contains(&1),
+                };
             SpringHints {
                 exceptional: &p.exceptional,
-                uniform: 4.0 * spread <= floor,
+                uniform,
+                flagged,
             }
         });
         let d = disperse_with(
@@ -1647,7 +1665,12 @@ mod tests {
         let hints = |w: &World| {
             let p = w.prepared.as_ref().unwrap();
             let floor = p.chunk_floor.iter().fold(f64::INFINITY, |m, &f| m.min(f));
-            (p.exceptional.clone(), floor)
+            // The stencil copies its flags out only when the dispersion reads them.
+            let mut exceptional = p.exceptional.clone();
+            if let Some(plan) = p.stencil.as_ref().filter(|_| p.stencil_enabled) {
+                plan.write_flags(&mut exceptional);
+            }
+            (exceptional, floor)
         };
         let mut corrections = 0;
         for step in 0..600 {
