@@ -128,6 +128,21 @@ pub(crate) fn touches_any(planes: &[Plane], capsules: &[Capsule], x: &Vector3<f6
             .any(|cap| cap.radius - capsule_offset(cap, x).1 > 0.0)
 }
 
+/// Whether every point within `reach` of `x` is clear of all surfaces (no [`touches_any`]):
+/// the distance to a plane or a capsule changes by at most the distance moved.
+#[inline]
+pub(crate) fn beyond_reach(
+    planes: &[Plane],
+    capsules: &[Capsule],
+    x: &Vector3<f64>,
+    reach: f64,
+) -> bool {
+    planes.iter().all(|p| -plane_depth(p, x) > reach)
+        && capsules
+            .iter()
+            .all(|cap| capsule_offset(cap, x).1 - cap.radius > reach)
+}
+
 /// The contact of one node with every rigid surface: total force, deepest penetration and
 /// the force from the manipulators alone (for their reaction).
 #[inline]
