@@ -675,8 +675,7 @@ impl World {
     /// One step of `dt` seconds.
     pub fn step(&mut self, dt: f64) -> StepStats {
         let mut acc = FrameAccumulator::default();
-        // On a worker of the thread pool (see `advance_frame`).
-        rayon::scope(|_| self.step_accumulate(dt, &mut acc))
+        on_worker(self.nodes.len(), || self.step_accumulate(dt, &mut acc))
     }
 
     /// One step: spring forces (per spring), then one fused node pass (gather, gravity,
@@ -1170,11 +1169,7 @@ impl World {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
         self.contact_log.begin_frame();
-        // The substeps run on a worker of the thread pool: called from any other thread, each
-        // parallel pass of a step would hand its work to the pool and wait (a wake-up and a
-        // context switch per pass, which costs more than the work itself on small bodies).
-        // Already on a worker, `scope` runs this in place.
-        rayon::scope(|_| {
+        on_worker(self.nodes.len(), || {
             for _ in 0..choice.substeps {
                 self.step_accumulate(choice.dt, &mut acc);
             }
@@ -1423,6 +1418,36 @@ impl World {
 
 /// [`crate::lattice::cell_is_inverted`] on `Vector3` positions (the same arithmetic, without building a
 /// `Vec<Point3>` of every node each frame).
+/// Worlds with fewer nodes step on one thread when the caller has not chosen a pool: their
+/// parallel passes are too short to pay for handing work to a second thread (measured: the
+/// 613-node demo bakes in 2.8 s on one thread, 3.3–3.7 s on two).
+const SERIAL_BELOW_NODES: usize = PAR_CHUNK;
+
+/// Run `f` (the steps of a world of `nodes` nodes) on a thread-pool worker. Called from any
+/// other thread, each parallel pass of a step would hand its work to the pool and wait for it
+/// (a wake-up and a context switch per pass); on a worker the passes run in place. A caller
+/// already on a worker keeps its pool (and its thread count); otherwise small worlds go to a
+/// one-thread pool and the others to the global pool. Results do not depend on the choice.
+fn on_worker<R: Send>(nodes: usize, f: impl FnOnce() -> R + Send) -> R {
+    static SERIAL: std::sync::OnceLock<Option<rayon::ThreadPool>> = std::sync::OnceLock::new();
+    if rayon::current_thread_index().is_some() {
+        return f();
+    }
+    if nodes < SERIAL_BELOW_NODES {
+        let serial = SERIAL.get_or_init(|| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .thread_name(|_| "springbake-serial".into())
+                .build()
+                .ok()
+        });
+        if let Some(pool) = serial {
+            return pool.install(f);
+        }
+    }
+    rayon::scope(|_| f())
+}
+
 fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> bool {
     let p = |c: usize| positions[nodes[c] as usize];
     if crate::cage::is_tet_cell(nodes) {
