@@ -1416,8 +1416,6 @@ impl World {
     }
 }
 
-/// [`crate::lattice::cell_is_inverted`] on `Vector3` positions (the same arithmetic, without building a
-/// `Vec<Point3>` of every node each frame).
 /// Worlds with fewer nodes step on one thread when the caller has not chosen a pool: their
 /// parallel passes are too short to pay for handing work to a second thread (measured: the
 /// 613-node demo bakes in 2.8 s on one thread, 3.3–3.7 s on two).
@@ -1448,6 +1446,8 @@ fn on_worker<R: Send>(nodes: usize, f: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| f())
 }
 
+/// [`crate::lattice::cell_is_inverted`] on `Vector3` positions (the same arithmetic, without building a
+/// `Vec<Point3>` of every node each frame).
 fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> bool {
     let p = |c: usize| positions[nodes[c] as usize];
     if crate::cage::is_tet_cell(nodes) {
