@@ -244,18 +244,22 @@ fn long_rows(l: &Lattice, reps: usize, wide: bool) -> (f64, Vec<[f64; 3]>) {
         f.iter_mut().for_each(|c| c.fill(0.0));
         for (off, rest, mask) in &dirs {
             let m = nodes - off;
-            let own = row_of(&soa, 0, m);
-            let far = row_of(&soa, *off, m);
+            let row = Row {
+                own: row_of(&soa, 0, m),
+                far: row_of(&soa, *off, m),
+                mask: &mask[..m],
+                rest: *rest,
+            };
             if wide {
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: `wide` is only set where `stencil::avx512_available` found the CPU features
                 // the function is compiled for.
                 #[allow(unsafe_code)]
                 unsafe {
-                    long_row_avx512(&own, &far, &mask[..m], *rest, &mut t, m)
+                    long_row_avx512(&row, &mut t)
                 };
             } else {
-                long_row(&own, &far, &mask[..m], *rest, &mut t, m);
+                long_row(&row, &mut t);
             }
             for c in 0..3 {
                 let (fc, tc) = (&mut f[c], &t[c][..m]);
@@ -273,20 +277,23 @@ fn long_rows(l: &Lattice, reps: usize, wide: bool) -> (f64, Vec<[f64; 3]>) {
     (t0.elapsed().as_secs_f64() / reps as f64, out)
 }
 
-/// One direction of [`long_rows`]: the masked spring forces of the pairs `(j, j + offset)`.
-#[inline(always)]
-fn long_row(
-    own: &[&[f64]; 6],
-    far: &[&[f64]; 6],
-    mask: &[f64],
+/// One direction of [`long_rows`]: the near ends (`own`), the far ends `offset` slots on, which
+/// pairs are springs (`mask`, 1 or 0) and their rest length.
+struct Row<'a> {
+    own: [&'a [f64]; 6],
+    far: [&'a [f64]; 6],
+    mask: &'a [f64],
     rest: f64,
-    t: &mut [Vec<f64>; 3],
-    m: usize,
-) {
+}
+
+/// The masked spring forces of one [`Row`] into `t`.
+#[inline(always)]
+fn long_row(row: &Row, t: &mut [Vec<f64>; 3]) {
+    let m = row.mask.len();
     let [tx, ty, tz] = t;
-    let (tx, ty, tz, mask) = (&mut tx[..m], &mut ty[..m], &mut tz[..m], &mask[..m]);
+    let (tx, ty, tz, mask) = (&mut tx[..m], &mut ty[..m], &mut tz[..m], row.mask);
     for j in 0..m {
-        let fs = pair_force(own, far, j, rest);
+        let fs = pair_force(&row.own, &row.far, j, row.rest);
         (tx[j], ty[j], tz[j]) = (fs[0] * mask[j], fs[1] * mask[j], fs[2] * mask[j]);
     }
 }
@@ -295,15 +302,8 @@ fn long_row(
 /// order per spring (Rust never fuses a multiply and an add on its own), so the same bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2")]
-fn long_row_avx512(
-    own: &[&[f64]; 6],
-    far: &[&[f64]; 6],
-    mask: &[f64],
-    rest: f64,
-    t: &mut [Vec<f64>; 3],
-    m: usize,
-) {
-    long_row(own, far, mask, rest, t, m)
+fn long_row_avx512(row: &Row, t: &mut [Vec<f64>; 3]) {
+    long_row(row, t)
 }
 
 /// 3: every spring from both ends, summed per node (interior nodes only, timed per node).

@@ -1499,14 +1499,21 @@ mod tests {
         (w, lattice, m)
     }
 
+    /// `world`, a copy with one of its fast paths switched off by `switch_off`, and the step
+    /// for 24 fps.
+    fn with_twin(mut world: World, switch_off: fn(&mut Prepared)) -> (World, World, f64) {
+        let dt = world.choose_substeps(1.0 / 24.0).dt;
+        let mut twin = world.clone();
+        switch_off(twin.prepare());
+        (world, twin, dt)
+    }
+
     #[test]
     fn dispersion_hints_change_nothing_through_an_impact() {
         // The thrown cube stepped with and without the spring hints: the same bits and the
         // same dispersion counts every step.
-        let (mut hinted, lattice, m) = soft_cube_thrown_at_wall();
-        let dt = hinted.choose_substeps(1.0 / 24.0).dt;
-        let mut plain = hinted.clone();
-        plain.prepare().hints_enabled = false;
+        let (cube, lattice, m) = soft_cube_thrown_at_wall();
+        let (mut hinted, mut plain, dt) = with_twin(cube, |p| p.hints_enabled = false);
         let (mut corrections, mut uniform_steps) = (0, 0);
         for _ in 0..600 {
             let a = hinted.step(dt);
@@ -1658,10 +1665,8 @@ mod tests {
         // The later dispersion sweeps visit only the springs at changed nodes; through the
         // thrown cube's impact the result must be exactly that of sweeps reading every
         // spring's stamps.
-        let (mut active, _, _) = soft_cube_thrown_at_wall();
-        let dt = active.choose_substeps(1.0 / 24.0).dt;
-        let mut stamps = active.clone();
-        stamps.prepare().active_set_enabled = false;
+        let (cube, _, _) = soft_cube_thrown_at_wall();
+        let (mut active, mut stamps, dt) = with_twin(cube, |p| p.active_set_enabled = false);
         let mut multi_sweep_steps = 0;
         for _ in 0..600 {
             let a = active.step(dt);
@@ -1680,10 +1685,8 @@ mod tests {
         // The thrown cube with its springs by stencil and by index lists: each step's
         // dispersion hints are the same bits (per-spring arithmetic is the same), and the
         // motion through the impact agrees to rounding (node sums add in another order).
-        let (mut stencil, _, _) = soft_cube_thrown_at_wall();
-        let dt = stencil.choose_substeps(1.0 / 24.0).dt;
-        let mut lists = stencil.clone();
-        lists.prepare().stencil_enabled = false;
+        let (cube, _, _) = soft_cube_thrown_at_wall();
+        let (mut stencil, mut lists, dt) = with_twin(cube, |p| p.stencil_enabled = false);
         assert!(
             stencil.prepare().stencil.is_some(),
             "a lattice body uses the stencil"
