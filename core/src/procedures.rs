@@ -643,6 +643,10 @@ pub fn change_material(
         to.density_kg_m3,
         model.longest_m,
     );
+    if let Some(body) = world.bodies.get_mut(h.0) {
+        body.material = Some(to.clone());
+    }
+    world.invalidate_prepared();
     model.material = to;
     reseed_rigid(world, h)
 }

@@ -239,8 +239,10 @@ pub struct SolverSection {
     /// Cap on dispersion sweeps per step; hitting it is reported.
     #[serde(default = "default_dispersion_iterations")]
     pub max_dispersion_iterations: u32,
-    /// `"symplectic_euler"` (Miyazaki, default) or `"newmark"` (Terasawa's iterative
-    /// Newmark-β; the dispersion and deformation damping act after its corrector).
+    /// `"xpbd"` (default: small-step XPBD with volumetric cells, see `solver::xpbd`),
+    /// `"symplectic_euler"` (Miyazaki's mass-spring lattice with velocity dispersion) or
+    /// `"newmark"` (Terasawa's iterative Newmark-β; the dispersion and deformation damping act
+    /// after its corrector).
     #[serde(default)]
     pub integrator: IntegratorSpec,
     /// β of Newmark-β: 0.25 (average acceleration) or 1/6 (linear acceleration).
@@ -256,6 +258,7 @@ fn default_beta() -> f64 {
 #[serde(rename_all = "snake_case")]
 pub enum IntegratorSpec {
     #[default]
+    Xpbd,
     SymplecticEuler,
     Newmark,
 }

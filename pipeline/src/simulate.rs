@@ -301,6 +301,7 @@ pub fn prepare(
             springbake_core::scene::SubstepSpec::Fixed(n) => Some(n),
         },
         integrator: match scene.solver.integrator {
+            IntegratorSpec::Xpbd => Integrator::Xpbd,
             IntegratorSpec::SymplecticEuler => Integrator::SymplecticEuler,
             IntegratorSpec::Newmark => Integrator::Newmark {
                 beta: scene.solver.newmark_beta,

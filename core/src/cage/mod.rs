@@ -238,6 +238,7 @@ impl Cage {
             .iter()
             .map(|t| tet_cell(t.map(|n| n + base)))
             .collect();
+        world.bodies[handle.0].material = Some(material.clone());
         world.bodies[handle.0].deformation_damping =
             crate::solver::deformation_damping::damping_rate(
                 material.damping_ratio,

@@ -27,6 +27,7 @@ pub mod stencil;
 pub mod substeps;
 pub mod volume;
 mod world;
+pub mod xpbd;
 
 pub use body_contact::ContactModel;
 pub use constraints::{

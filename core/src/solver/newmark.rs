@@ -45,6 +45,9 @@ pub enum Integrator {
         tolerance: f64,
         max_iterations: u32,
     },
+    /// Extended position-based dynamics with small steps and volumetric cells (the scene
+    /// file's default; see [`super::xpbd`]).
+    Xpbd,
 }
 
 impl Integrator {
@@ -52,7 +55,7 @@ impl Integrator {
     /// positive and finite, or no iterations.
     pub fn check(&self) -> Result<(), String> {
         match *self {
-            Integrator::SymplecticEuler => Ok(()),
+            Integrator::SymplecticEuler | Integrator::Xpbd => Ok(()),
             Integrator::Newmark {
                 beta,
                 tolerance,

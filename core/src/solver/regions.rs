@@ -103,6 +103,16 @@ pub fn apply_region(
         let mu_scale = if mu0 > 0.0 { mu1 / mu0 } else { 1.0 };
         s.damping[k] *= (k_scale * mu_scale).sqrt();
     }
+    // The XPBD cells whose centre is inside take the same stiffness factor.
+    let body_info = &mut world.bodies[body.0];
+    let x = &world.nodes.position;
+    body_info.cell_stiffness.resize(body_info.cells.len(), 1.0);
+    for (cell, scale) in body_info.cells.iter().zip(&mut body_info.cell_stiffness) {
+        let centre = cell.iter().map(|&i| x[i as usize]).sum::<Vector3<f64>>() / 8.0;
+        if inside(&centre) {
+            *scale *= region.stiffness_scale;
+        }
+    }
     world.invalidate_prepared();
     Ok(RegionEffect { nodes, springs })
 }

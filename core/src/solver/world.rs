@@ -110,6 +110,11 @@ pub struct BodyInfo {
     /// Where a lattice body's nodes sit on its grid (`None` for other models): lets the
     /// step evaluate its springs by stencil (see [`super::stencil`]).
     pub grid: Option<LatticeGrid>,
+    /// The body's material (lattice and cage bodies): the XPBD solver's cells take their
+    /// Young's modulus and Poisson ratio from it ([`super::xpbd`]).
+    pub material: Option<Material>,
+    /// Per cell: stiffness factor set by regions (empty: 1 everywhere).
+    pub cell_stiffness: Vec<f64>,
 }
 
 /// All simulated bodies and what they touch.
@@ -145,6 +150,10 @@ pub struct World {
     pub(crate) contact_log: ContactLog,
     /// Body–body and body–collider contact (see [`super::body_contact`]).
     pub(crate) body_contact: BodyContact,
+    /// Rest position of every node (where it was added): the XPBD cells' rest shapes.
+    pub(crate) rest: Vec<Vector3<f64>>,
+    /// The XPBD solver's derived model and buffers, built at its first step.
+    pub(crate) xpbd: Option<super::xpbd::Model>,
     prepared: Option<Prepared>,
     /// Buffers of the step's constraint, rigid-body and volume passes, reused.
     scratch: StepScratch,
@@ -354,6 +363,8 @@ impl World {
             newmark: None,
             contact_log: ContactLog::default(),
             body_contact: BodyContact::default(),
+            rest: Vec::new(),
+            xpbd: None,
             prepared: None,
             scratch: StepScratch::default(),
         }
@@ -405,6 +416,7 @@ impl World {
             material.density_kg_m3,
             longest,
         );
+        self.bodies[handle.0].material = Some(material.clone());
         self.bodies[handle.0].cells = lattice
             .cell_nodes
             .iter()
@@ -443,6 +455,7 @@ impl World {
                 .inv_mass
                 .push(if m > 0.0 { 1.0 / m } else { 0.0 });
             self.node_contact.push(true);
+            self.rest.push(*p);
         }
         for &(a, b, k, d) in springs {
             let rest = (positions[a as usize] - positions[b as usize]).norm();
@@ -455,8 +468,10 @@ impl World {
             cells: Vec::new(),
             deformation_damping: 0.0,
             grid: None,
+            material: None,
+            cell_stiffness: Vec::new(),
         });
-        self.prepared = None;
+        self.invalidate_prepared();
         BodyHandle(self.bodies.len() - 1)
     }
 
@@ -496,7 +511,7 @@ impl World {
         for n in info.nodes.clone() {
             self.node_contact[n] = false;
         }
-        self.prepared = None;
+        self.invalidate_prepared();
     }
 
     /// Node positions of one body.
@@ -516,6 +531,7 @@ impl World {
     /// springs from outside this module (joints, regions, cage contact surfaces).
     pub fn invalidate_prepared(&mut self) {
         self.prepared = None;
+        self.xpbd = None;
     }
 
     fn prepare(&mut self) -> &mut Prepared {
@@ -646,6 +662,9 @@ impl World {
                 limited_by: "fixed",
             };
         }
+        if self.settings.integrator == Integrator::Xpbd {
+            return super::xpbd::choose_substeps(self, frame_dt);
+        }
         let travel = self.settings.max_travel_fraction;
         let v_max = self.max_speed();
         let p = self.prepare();
@@ -722,6 +741,15 @@ impl World {
                     }
                 }
                 stats
+            }
+            Integrator::Xpbd => {
+                let out = super::xpbd::step(self, dt);
+                acc.max_depth = acc.max_depth.max(out.max_depth);
+                acc.steps += 1;
+                if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
+                    acc.reaction_sum -= out.capsule_force;
+                }
+                StepStats::default()
             }
             Integrator::Newmark {
                 beta,
@@ -1205,7 +1233,10 @@ impl World {
             kinetic_energy: deterministic_sum(n.len(), |i| {
                 0.5 * n.mass[i] * n.velocity[i].norm_squared()
             }),
-            elastic_energy: deterministic_sum(s.len(), |i| spring_energy(n, s, i)),
+            elastic_energy: match (&self.settings.integrator, &self.xpbd) {
+                (Integrator::Xpbd, Some(model)) => model.elastic_energy(self),
+                _ => deterministic_sum(s.len(), |i| spring_energy(n, s, i)),
+            },
             gravity_energy: deterministic_sum(n.len(), |i| -n.mass[i] * g.dot(&n.position[i])),
             inverted_cells: self.inverted_cells(),
             max_speed: self.max_speed(),
@@ -1366,6 +1397,7 @@ impl World {
             .ok_or_else(|| ConstraintError::NotRigid(info.name.clone()))?;
         self.rigid.retain(|r| r.body != body.0);
         self.rigid.push(rigid);
+        self.xpbd = None;
         Ok(())
     }
 
@@ -1397,7 +1429,7 @@ impl World {
             s.stiffness[i] *= factor;
             s.damping[i] *= factor.sqrt();
         }
-        self.prepared = None;
+        self.invalidate_prepared();
         Ok(())
     }
 

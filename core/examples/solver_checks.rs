@@ -1,0 +1,348 @@
+//! The new solver's targets (issue 16) measured on built-in scenes, for any integrator:
+//! rebound per material preset, fidelity against the explicit solver (centre of mass over a
+//! drop and two bounces, resting height), spin kept by a free cube, a column's sag under its
+//! own weight, the jelly block swept by the capsule (inverted cells, time per frame), the
+//! jelly ball dropped at 8 m/s with volume preservation, and a 1 cm cube. Prints one line per
+//! check; nothing here is asserted (the tests in `core/tests/xpbd.rs` are).
+//!
+//! `cargo run --release -p springbake-core --example solver_checks [-- xpbd|euler|newmark]`
+
+use springbake_core::lattice::{
+    fit_lattice, surface_samples, FitSettings, Lattice, Resolution, SpringLayout,
+};
+use springbake_core::material::Material;
+use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::shapes::{box_mesh, uv_sphere};
+use springbake_core::solver::manipulator::ManipulatorKey;
+use springbake_core::solver::{Capsule, Integrator, ManipulatorTrack, Plane, World, WorldSettings};
+use std::time::Instant;
+
+const FPS: f64 = 24.0;
+
+struct Body {
+    points: Vec<Point3<f64>>,
+    triangles: Vec<[u32; 3]>,
+    lattice: Lattice,
+}
+
+fn body(points: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>, cells: u32) -> Body {
+    let lattice = fit_lattice(
+        &points,
+        &triangles,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(cells),
+            layout: SpringLayout::Both,
+            ..FitSettings::default()
+        },
+    )
+    .expect("fits");
+    Body {
+        points,
+        triangles,
+        lattice,
+    }
+}
+
+/// A world with a floor at y = 0 (unless `floor` is false) holding `b` in `material`, set up as
+/// the product sets up a mesh (display-surface contact at half a cell).
+fn world(
+    b: &Body,
+    material: &Material,
+    integrator: Integrator,
+    velocity: Vector3<f64>,
+    floor: bool,
+) -> World {
+    let layer = WorldSettings::default_layer(b.lattice.cell_size, material, 0.4);
+    let mut w = World::new(WorldSettings {
+        planes: if floor {
+            vec![Plane {
+                normal: Vector3::y(),
+                offset: 0.0,
+            }]
+        } else {
+            Vec::new()
+        },
+        layer,
+        integrator,
+        ..WorldSettings::default()
+    });
+    if let Ok(n) = std::env::var("SUBSTEPS") {
+        w.settings.fixed_substeps = n.parse().ok();
+    }
+    let h = w.add_lattice_body("body", &b.lattice, material, velocity);
+    if std::env::var("NODES").is_err() {
+        let (samples, areas) = surface_samples(&b.points, &b.triangles, 0.5 * b.lattice.cell_size);
+        w.add_contact_surface(h, &b.lattice, &samples, &areas);
+    }
+    w
+}
+
+fn centre(w: &World) -> Vector3<f64> {
+    let n = &w.nodes;
+    let m: f64 = n.mass.iter().sum();
+    (0..n.len())
+        .map(|i| n.position[i] * n.mass[i])
+        .sum::<Vector3<f64>>()
+        / m
+}
+
+fn lowest(w: &World) -> f64 {
+    w.nodes
+        .position
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn frame(w: &mut World, f: usize) -> springbake_core::solver::FrameDiagnostics {
+    w.advance_frame(1.0 / FPS, f, &|| false).expect("finite")
+}
+
+/// Drop a ball of radius 0.1 m from 1 m (its bottom) and report the highest its bottom gets
+/// after the first bounce.
+fn rebound(material: &Material, integrator: Integrator) {
+    let (p, t) = uv_sphere([0.0, 1.1, 0.0], 0.1, 12, 24);
+    let b = body(p, t, 8);
+    let mut w = world(&b, material, integrator, Vector3::zeros(), true);
+    let offset = lowest(&w) - 1.0;
+    let (mut touched, mut peak, mut inverted) = (false, 0.0f64, 0);
+    let t0 = Instant::now();
+    let mut substeps = 0;
+    for f in 1..=72 {
+        let d = frame(&mut w, f);
+        if std::env::var("TRACE").is_ok() && d.inverted_cells > 0 {
+            println!(
+                "  frame {f}: inverted {} lowest {:.4}",
+                d.inverted_cells,
+                lowest(&w)
+            );
+        }
+        substeps = substeps.max(d.substeps);
+        inverted = inverted.max(d.inverted_cells);
+        let bottom = lowest(&w) - offset;
+        if bottom < 0.02 {
+            touched = true;
+        } else if touched {
+            peak = peak.max(bottom);
+        }
+    }
+    println!(
+        "rebound {:>12}: ball r 0.1 m from 1 m bounces to {peak:.3} m ({} substeps, inverted max {inverted}, {:.1} ms/frame)",
+        material.name,
+        substeps,
+        t0.elapsed().as_secs_f64() * 1e3 / 72.0
+    );
+}
+
+fn main() {
+    let which = std::env::args().nth(1).unwrap_or_else(|| "xpbd".into());
+    let integrator = match which.as_str() {
+        "euler" => Integrator::SymplecticEuler,
+        "newmark" => Integrator::newmark(),
+        _ => Integrator::Xpbd,
+    };
+    println!(
+        "integrator {which}, load {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
+    if std::env::var("ONLY").is_ok() {
+        spin(integrator);
+        column(integrator);
+        return;
+    }
+    if std::env::var("SWEEP").is_ok() {
+        jelly_sweep(integrator, 2.0);
+        jelly_sweep(integrator, 1.0);
+        jelly_ball(integrator);
+        return;
+    }
+    if std::env::var("BALLS").is_ok() {
+        for name in ["rubber", "steel"] {
+            rebound(&Material::preset(name).expect("preset"), integrator);
+        }
+        return;
+    }
+    for name in ["jelly", "soft_rubber", "rubber", "foam", "wood", "steel"] {
+        rebound(&Material::preset(name).expect("preset"), integrator);
+    }
+    fidelity(integrator);
+    spin(integrator);
+    column(integrator);
+    jelly_sweep(integrator, 2.0);
+    jelly_ball(integrator);
+    tiny_cube(integrator);
+}
+
+/// Rubber cube (0.5 m, 8 cells) dropped from 0.5 m: centre of mass over 48 frames, printed
+/// every 4 frames, and the resting height after 4 s.
+fn fidelity(integrator: Integrator) {
+    let (p, t) = box_mesh([0.0, 0.5, 0.0], [0.5, 1.0, 0.5]);
+    let b = body(p, t, 8);
+    let rubber = Material::preset("rubber").expect("preset");
+    let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
+    let mut line = String::new();
+    for f in 1..=96 {
+        frame(&mut w, f);
+        if f % 6 == 0 {
+            line += &format!(" {:.3}", centre(&w).y);
+        }
+    }
+    println!(
+        "fidelity: rubber cube centre y every 6 frames:{line}; lowest node {:.4} m",
+        lowest(&w)
+    );
+}
+
+/// A free rubber cube spinning at 1 rev/s about y (no gravity, no floor): spin kept after 1 s.
+fn spin(integrator: Integrator) {
+    let (p, t) = box_mesh([-0.25, -0.25, -0.25], [0.25, 0.25, 0.25]);
+    let b = body(p, t, 8);
+    let rubber = Material::preset("rubber").expect("preset");
+    let mut w = world(&b, &rubber, integrator, Vector3::zeros(), false);
+    w.settings.gravity = Vector3::zeros();
+    let omega = 2.0 * std::f64::consts::PI;
+    for i in 0..w.nodes.len() {
+        let x = w.nodes.position[i];
+        w.nodes.velocity[i] = Vector3::y().cross(&x) * omega;
+    }
+    let spin_of = |w: &World| {
+        let r =
+            springbake_core::solver::deformation_damping::rigid_motion(&w.nodes, 0..w.nodes.len());
+        r.angular_velocity.y
+    };
+    if std::env::var("NODAMP").is_ok() {
+        w.bodies[0].deformation_damping = 0.0;
+    }
+    let before = spin_of(&w);
+    let ang = |w: &World| {
+        let c = centre(w);
+        (0..w.nodes.len())
+            .map(|i| (w.nodes.position[i] - c).cross(&w.nodes.velocity[i]) * w.nodes.mass[i])
+            .sum::<Vector3<f64>>()
+            .y
+    };
+    let l0 = ang(&w);
+    for f in 1..=24 {
+        frame(&mut w, f);
+        if std::env::var("ONLY").is_ok() {
+            println!(
+                "  frame {f}: L {:.5} / {:.5}, omega {:.4}",
+                ang(&w),
+                l0,
+                spin_of(&w)
+            );
+        }
+    }
+    println!(
+        "spin: free rubber cube keeps {:.1} % of 1 rev/s after 1 s",
+        100.0 * spin_of(&w) / before
+    );
+}
+
+/// A soft column (0.2 × 1 × 0.2 m, E = 1 MPa, ρ = 1000) standing on the floor, its base
+/// nodes pinned: top sag after settling against ρ g h² / (2E).
+fn column(integrator: Integrator) {
+    let (p, t) = box_mesh([0.0, 0.0, 0.0], [0.2, 1.0, 0.2]);
+    let b = body(p, t, 10);
+    let m = Material::new("column", 1.0e6, 0.0, 1000.0, 0.5).expect("material");
+    let mut w = world(&b, &m, integrator, Vector3::zeros(), true);
+    let base: Vec<usize> = (0..w.nodes.len())
+        .filter(|&i| w.nodes.position[i].y < 1e-9)
+        .collect();
+    w.pin(&base).expect("pins");
+    let top0 = w.nodes.position.iter().map(|p| p.y).fold(0.0, f64::max);
+    for f in 1..=96 {
+        frame(&mut w, f);
+    }
+    let top = w.nodes.position.iter().map(|p| p.y).fold(0.0, f64::max);
+    let expected = 1000.0 * 9.81 * 1.0 / (2.0 * 1.0e6);
+    println!(
+        "column: top sags {:.3} mm, rho g h^2/(2E) = {:.3} mm",
+        (top0 - top) * 1e3,
+        expected * 1e3
+    );
+}
+
+/// A 30 cm jelly block (8 cells) on the floor swept broadside by a 4 cm capsule at `speed`.
+fn jelly_sweep(integrator: Integrator, speed: f64) {
+    let (p, t) = box_mesh([-0.15, 0.0, -0.15], [0.15, 0.3, 0.15]);
+    let b = body(p, t, 8);
+    let jelly = Material::preset("jelly").expect("preset");
+    let mut w = world(&b, &jelly, integrator, Vector3::zeros(), true);
+    w.manipulators.push(ManipulatorTrack {
+        radius: 0.04,
+        length: 0.6,
+        friction: 0.3,
+        smooth: false,
+        keys: vec![
+            ManipulatorKey {
+                t: 0.0,
+                position: Vector3::new(-0.6, 0.15, 0.0),
+                yaw_deg: 90.0,
+            },
+            ManipulatorKey {
+                t: 1.2 / speed,
+                position: Vector3::new(0.6, 0.15, 0.0),
+                yaw_deg: 90.0,
+            },
+        ],
+        up: Vector3::y(),
+    });
+    let _ = Capsule::fallback_normal;
+    let (mut worst, mut last, mut frames) = (0, 0, 0);
+    let t0 = Instant::now();
+    for f in 1..=48 {
+        let d = frame(&mut w, f);
+        worst = worst.max(d.inverted_cells);
+        last = d.inverted_cells;
+        frames += 1;
+    }
+    println!(
+        "jelly sweep at {speed} m/s: inverted cells max {worst}, at the end {last}; {:.1} ms/frame",
+        t0.elapsed().as_secs_f64() * 1e3 / frames as f64
+    );
+}
+
+/// A jelly ball (r 0.5 m, 8 cells) thrown down at 8 m/s with volume preservation: the
+/// largest deviation of the lattice volume from rest over 48 frames.
+fn jelly_ball(integrator: Integrator) {
+    let (p, t) = uv_sphere([0.0, 0.52, 0.0], 0.5, 16, 32);
+    let b = body(p, t, 8);
+    let jelly = Material::preset("jelly").expect("preset");
+    let mut w = world(&b, &jelly, integrator, Vector3::new(0.0, -8.0, 0.0), true);
+    let h = springbake_core::solver::BodyHandle(0);
+    w.preserve_volume(h, 1.0).expect("volume");
+    let v0 = w.body_volume(h);
+    let (mut worst, mut inverted) = (0.0f64, 0);
+    let t0 = Instant::now();
+    for f in 1..=48 {
+        let d = frame(&mut w, f);
+        worst = worst.max((w.body_volume(h) / v0 - 1.0).abs());
+        inverted = inverted.max(d.inverted_cells);
+    }
+    println!(
+        "jelly ball at 8 m/s, preserve_volume: lattice volume within {:.2} % of rest, inverted max {inverted}; {:.1} ms/frame",
+        worst * 100.0,
+        t0.elapsed().as_secs_f64() * 1e3 / 48.0
+    );
+}
+
+/// A 1 cm rubber cube dropped 1 cm: 72 frames' wall time and substeps.
+fn tiny_cube(integrator: Integrator) {
+    let (p, t) = box_mesh([0.0, 0.01, 0.0], [0.01, 0.02, 0.01]);
+    let b = body(p, t, 10);
+    let rubber = Material::preset("rubber").expect("preset");
+    let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
+    let t0 = Instant::now();
+    let mut substeps = 0;
+    for f in 1..=72 {
+        substeps = substeps.max(frame(&mut w, f).substeps);
+    }
+    println!(
+        "1 cm rubber cube: 72 frames in {:.2} s, {substeps} substeps per frame at most, lowest node {:.5} m",
+        t0.elapsed().as_secs_f64(),
+        lowest(&w)
+    );
+}

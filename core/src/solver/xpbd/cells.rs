@@ -1,0 +1,674 @@
+//! The volumetric cell model of the XPBD solver: every lattice cell (and every cage tet) is an
+//! elastic solid with the material's Young's modulus and Poisson ratio, not a set of springs.
+//!
+//! A lattice cell is integrated at four of its corners: corner `c` and its three edge
+//! neighbours (`c^1`, `c^2`, `c^4`) span a corner tetrahedron whose deformation gradient is
+//! `F_c = [s_x (x_{c^1} − x_c), s_y (x_{c^2} − x_c), s_z (x_{c^4} − x_c)] / h` (`s = ±1` so a
+//! cell at rest gives `F = I`), each standing for a quarter of the cell's volume. The four are
+//! every other corner (`{0, 3, 5, 6}` or `{1, 2, 4, 7}`, alternating from cell to cell like
+//! the five-tet split, so the discretisation has no preferred diagonal): their twelve edges are
+//! the cell's and their tets hold the central tet's six edges too, so the cell has no
+//! deformation they do not see. Inverting any corner tetrahedron (what
+//! [`crate::lattice::cell_is_inverted`] counts) moves one of these corners' nodes through
+//! its tet, which they resist.
+//!
+//! The energy is Hooke's law made rotation-invariant: a Green-strain (St Venant–Kirchhoff)
+//! shear part per corner and a volumetric part per cell,
+//! `Ψ = Σ_corners V_c μ ‖E_c‖²_F + ½ λ V_0 (V/V_0 − 1)²`, `E = ½ (FᵀF − I)`, `μ, λ` the Lamé
+//! parameters of (E, ν), `V` the cell's volume (its six Kuhn tets, as in
+//! [`crate::solver::volume`]). Taking the volume once per cell rather than per corner is
+//! selective reduced integration: a nearly incompressible material (jelly, rubber: ν ≈ 0.5)
+//! can still shear the lattice instead of locking.
+//! At small strain it is linear elasticity with the user's E and ν; it does not change under a
+//! rotation of the element, so it exerts no torque and a spinning body keeps its angular
+//! momentum. Green strain alone does not see an inverted element (`E` is the same for `F` and
+//! a reflection of it); the volumetric term does (`det F < 0` is far from 1), and below
+//! [`COLLAPSE_J`] a barrier with the shear stiffness pushes a collapsing corner back open
+//! even when ν = 0 leaves λ at zero. As XPBD constraints (Macklin et al. 2016):
+//! `C_H = V/V_0 − 1` with compliance `1/(λ V_0)`, `C_D = ‖E‖_F` with compliance
+//! `1/(2 μ V_c)`, `V_c` the corner's share of the rest volume; stiffness therefore does not
+//! depend on the substep count. A cage's tet is one element with its own rest shape (`C_H =
+//! det F − 1` on the tet).
+//!
+//! Cells are coloured greedily so that no two cells of a colour share a node (a lattice
+//! gets the eight colours of `(i, j, k) mod 2`); a colour's cells are solved side by side on
+//! local copies of their eight nodes and written back in cell order, so any thread count gives
+//! the same bits.
+
+use crate::material::Material;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use std::ops::Range;
+
+type V3 = Vector3<f64>;
+
+/// Below this volume ratio a corner also meets the collapse barrier `det F − COLLAPSE_J ≥ 0`
+/// with the shear compliance.
+pub(crate) const COLLAPSE_J: f64 = 0.2;
+
+/// The rest shape of one cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Shape {
+    /// An axis-aligned cube of edge `1 / inv_h` at rest (lattice cells): four corner
+    /// elements, at the odd corners (`1, 2, 4, 7`) or the even ones (`0, 3, 5, 6`).
+    Cube { inv_h: f64, odd: bool },
+    /// A tetrahedron stored as a degenerate cell `[a, b, a, c, a, a, a, d]` (cages, and cells
+    /// that are not axis-aligned cubes, split in six): one element, `Dm⁻¹` of its rest edges.
+    Tet { dm_inv: Matrix3<f64> },
+}
+
+/// Lamé parameters `(μ, λ)` of a material, Pa.
+pub(crate) fn lame(material: &Material) -> (f64, f64) {
+    let (e, nu) = (material.young_pa, material.poisson);
+    (
+        e / (2.0 * (1.0 + nu)),
+        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+    )
+}
+
+/// What [`CellSet::push`] needs of one cell.
+pub(crate) struct CellInput<'a> {
+    /// World node ids (joint followers already resolved to their kept node).
+    pub nodes: [u32; 8],
+    /// Rest positions of `nodes`.
+    pub rest: [V3; 8],
+    pub material: &'a Material,
+    /// Stiffness factor of the cell (regions), 1 by default.
+    pub stiffness_scale: f64,
+}
+
+/// All elastic cells of a world, ordered by colour.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct CellSet {
+    nodes: Vec<[u32; 8]>,
+    shape: Vec<Shape>,
+    /// Compliance of the volumetric constraint per cell, `1/(λ V_0)` (∞: none).
+    hydro_alpha: Vec<f64>,
+    /// Compliance of the deviatoric constraint per element, `1/(2 μ V_c)`.
+    dev_alpha: Vec<f64>,
+    /// Cells of each colour; the last one may be `serial` (cells that share nodes).
+    colours: Vec<Range<usize>>,
+    serial_colour: Option<usize>,
+    /// Per cell of the widest colour: its nodes after the solve (scratch).
+    out: Vec<[V3; 8]>,
+    /// Shortest rest edge of any cell, m.
+    pub shortest_edge: f64,
+    /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
+    pub wave_speed: f64,
+}
+
+/// Colours past this one go to one serial colour.
+const MAX_COLOURS: usize = 64;
+
+impl CellSet {
+    /// Add one cell (in any order; [`Self::finish`] colours them). Degenerate cells are left
+    /// out.
+    pub(crate) fn push(&mut self, cell: CellInput) {
+        let (mu, lambda) = lame(cell.material);
+        let (mu, lambda) = (mu * cell.stiffness_scale, lambda * cell.stiffness_scale);
+        let speed =
+            (cell.material.young_pa * cell.stiffness_scale / cell.material.density_kg_m3).sqrt();
+        if crate::cage::is_tet_cell(&cell.nodes) {
+            self.push_tet(
+                cell.nodes,
+                [0, 1, 3, 7].map(|c| cell.rest[c]),
+                mu,
+                lambda,
+                speed,
+            );
+            return;
+        }
+        let r = &cell.rest;
+        let h = (r[1] - r[0]).norm();
+        let cube = h > 0.0
+            && (0..8).all(|c| {
+                let ideal = r[0]
+                    + V3::new(
+                        (c & 1) as f64 * h,
+                        ((c >> 1) & 1) as f64 * h,
+                        ((c >> 2) & 1) as f64 * h,
+                    );
+                (r[c] - ideal).norm() <= 1e-6 * h
+            });
+        if cube {
+            let corner_volume = h * h * h / 4.0;
+            // Alternate with the cell's place on its grid (rest corner 0 over the edge).
+            let parity = r[0].iter().map(|v| (v / h).round() as i64).sum::<i64>();
+            self.nodes.push(cell.nodes);
+            self.shape.push(Shape::Cube {
+                inv_h: 1.0 / h,
+                odd: parity.rem_euclid(2) == 1,
+            });
+            self.hydro_alpha.push(compliance(lambda * h * h * h));
+            self.dev_alpha.push(compliance(2.0 * mu * corner_volume));
+            self.note_scale(h, speed);
+        } else {
+            // Not an axis-aligned cube: Kuhn's six tets (see `volume::TETS`).
+            for t in crate::solver::volume::TETS {
+                let nodes = t.map(|c| cell.nodes[c]);
+                self.push_tet(
+                    crate::cage::tet_cell(nodes),
+                    t.map(|c| cell.rest[c]),
+                    mu,
+                    lambda,
+                    speed,
+                );
+            }
+        }
+    }
+
+    fn push_tet(&mut self, nodes: [u32; 8], rest: [V3; 4], mu: f64, lambda: f64, speed: f64) {
+        let dm = Matrix3::from_columns(&[rest[1] - rest[0], rest[2] - rest[0], rest[3] - rest[0]]);
+        let volume = dm.determinant() / 6.0;
+        let Some(dm_inv) = dm.try_inverse().filter(|_| volume > 0.0) else {
+            return;
+        };
+        let shortest = (1..4)
+            .map(|k| (rest[k] - rest[0]).norm())
+            .fold(f64::INFINITY, f64::min);
+        self.nodes.push(nodes);
+        self.shape.push(Shape::Tet { dm_inv });
+        self.hydro_alpha.push(compliance(lambda * volume));
+        self.dev_alpha.push(compliance(2.0 * mu * volume));
+        self.note_scale(shortest, speed);
+    }
+
+    fn note_scale(&mut self, edge: f64, speed: f64) {
+        if self.nodes.len() == 1 {
+            self.shortest_edge = f64::INFINITY;
+        }
+        self.shortest_edge = self.shortest_edge.min(edge);
+        self.wave_speed = self.wave_speed.max(speed);
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Colour the cells (greedy, in the order pushed) and order them by colour.
+    pub(crate) fn finish(&mut self, node_count: usize) {
+        let mut used = vec![0u64; node_count];
+        let colour: Vec<usize> = self
+            .nodes
+            .iter()
+            .map(|cell| {
+                let taken = cell.iter().fold(0u64, |m, &n| m | used[n as usize]);
+                let c = taken.trailing_ones() as usize;
+                if c < MAX_COLOURS {
+                    for &n in cell {
+                        used[n as usize] |= 1 << c;
+                    }
+                }
+                c.min(MAX_COLOURS)
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..self.nodes.len()).collect();
+        order.sort_by_key(|&i| colour[i]);
+        let nodes = order.iter().map(|&i| self.nodes[i]).collect();
+        let shape = order.iter().map(|&i| self.shape[i]).collect();
+        let hydro = order.iter().map(|&i| self.hydro_alpha[i]).collect();
+        let dev = order.iter().map(|&i| self.dev_alpha[i]).collect();
+        (self.nodes, self.shape) = (nodes, shape);
+        (self.hydro_alpha, self.dev_alpha) = (hydro, dev);
+        self.colours.clear();
+        self.serial_colour = None;
+        let mut start = 0;
+        while start < order.len() {
+            let c = colour[order[start]];
+            let end = start + order[start..].partition_point(|&i| colour[i] == c);
+            if c == MAX_COLOURS {
+                self.serial_colour = Some(self.colours.len());
+            }
+            self.colours.push(start..end);
+            start = end;
+        }
+        let widest = self.colours.iter().map(|r| r.len()).max().unwrap_or(0);
+        self.out = vec![[V3::zeros(); 8]; widest];
+    }
+
+    /// One Gauss–Seidel sweep over every cell's constraints (colour by colour), moving the
+    /// positions `x` with inverse masses `w` (0: the node does not move), for a substep of
+    /// `dt` seconds.
+    pub(crate) fn solve(&mut self, x: &mut [V3], w: &[f64], dt: f64) {
+        let inv_dt2 = 1.0 / (dt * dt);
+        for (colour, range) in self.colours.iter().enumerate() {
+            let nodes = &self.nodes[range.clone()];
+            let shape = &self.shape[range.clone()];
+            let hydro = &self.hydro_alpha[range.clone()];
+            let dev = &self.dev_alpha[range.clone()];
+            if Some(colour) == self.serial_colour {
+                for j in 0..nodes.len() {
+                    let mut local = nodes[j].map(|n| x[n as usize]);
+                    let wl = nodes[j].map(|n| w[n as usize]);
+                    let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
+                    solve_cell(&mut local, &wl, shape[j], alphas);
+                    for (k, &n) in nodes[j].iter().enumerate() {
+                        x[n as usize] = local[k];
+                    }
+                }
+                continue;
+            }
+            let out = &mut self.out[..nodes.len()];
+            {
+                let xs: &[V3] = x;
+                out.par_iter_mut()
+                    .with_min_len(128)
+                    .enumerate()
+                    .for_each(|(j, local)| {
+                        *local = nodes[j].map(|n| xs[n as usize]);
+                        let wl = nodes[j].map(|n| w[n as usize]);
+                        let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
+                        solve_cell(local, &wl, shape[j], alphas);
+                    });
+            }
+            for (cell, local) in nodes.iter().zip(out.iter()) {
+                for (k, &n) in cell.iter().enumerate() {
+                    x[n as usize] = local[k];
+                }
+            }
+        }
+    }
+
+    /// Only the collapse barriers of the cells with a node the contacts moved (`moved`), after
+    /// the contacts: they move a display-surface point's nodes by their weights and can
+    /// flatten the cell the point is in. Serial, in colour order (few cells).
+    pub(crate) fn solve_barriers(&self, x: &mut [V3], w: &[f64], moved: &[bool]) {
+        for (cell, &shape) in self.nodes.iter().zip(&self.shape) {
+            if !cell.iter().any(|&n| moved[n as usize]) {
+                continue;
+            }
+            let mut local = cell.map(|n| x[n as usize]);
+            let wl = cell.map(|n| w[n as usize]);
+            solve_cell(&mut local, &wl, shape, (f64::INFINITY, f64::INFINITY));
+            for (k, &n) in cell.iter().enumerate() {
+                x[n as usize] = local[k];
+            }
+        }
+    }
+
+    /// Elastic energy of every cell at positions `x`, J (for the report's energy balance).
+    pub(crate) fn energy(&self, x: &[V3]) -> f64 {
+        let mut total = 0.0;
+        for j in 0..self.nodes.len() {
+            let local = self.nodes[j].map(|n| x[n as usize]);
+            let (kh, kd) = (inverse(self.hydro_alpha[j]), inverse(self.dev_alpha[j]));
+            if let Shape::Cube { inv_h, .. } = self.shape[j] {
+                let c_h = cube_volume(&local).0 * inv_h * inv_h * inv_h - 1.0;
+                total += 0.5 * kh * c_h * c_h;
+            }
+            for_each_element(self.shape[j], |element| {
+                let f = element.gradient(&local);
+                if let Shape::Tet { .. } = self.shape[j] {
+                    let c_h = f.determinant() - 1.0;
+                    total += 0.5 * kh * c_h * c_h;
+                }
+                total += 0.5 * kd * green_strain(&f).norm_squared();
+            });
+        }
+        total
+    }
+}
+
+fn compliance(stiffness: f64) -> f64 {
+    if stiffness > 0.0 {
+        1.0 / stiffness
+    } else {
+        f64::INFINITY
+    }
+}
+
+fn inverse(alpha: f64) -> f64 {
+    if alpha.is_finite() {
+        1.0 / alpha
+    } else {
+        0.0
+    }
+}
+
+/// One element of a cell: its four local node slots and the map from its edge vectors to `F`.
+#[derive(Clone, Copy)]
+struct Element {
+    /// Local slots: the apex and its three edge ends.
+    slots: [usize; 4],
+    /// `∂F/∂(edge k)` as a matrix: `F = E · m` with `E = [x_k − x_apex]`.
+    m: Matrix3<f64>,
+}
+
+impl Element {
+    fn gradient(&self, x: &[V3; 8]) -> Matrix3<f64> {
+        let [a, b, c, d] = self.slots;
+        Matrix3::from_columns(&[x[b] - x[a], x[c] - x[a], x[d] - x[a]]) * self.m
+    }
+
+    /// Move the element's nodes to reduce constraint `value` with gradient `∂C/∂F` = `p`
+    /// (XPBD with the multiplier reset every substep: one Newton step of the constraint).
+    fn project(&self, x: &mut [V3; 8], w: &[f64; 8], value: f64, p: &Matrix3<f64>, alpha: f64) {
+        let h = p * self.m.transpose();
+        let g = [
+            -(h.column(0) + h.column(1) + h.column(2)),
+            h.column(0).into_owned(),
+            h.column(1).into_owned(),
+            h.column(2).into_owned(),
+        ];
+        let mut denominator = alpha;
+        for k in 0..4 {
+            denominator += w[self.slots[k]] * g[k].norm_squared();
+        }
+        if !(denominator > 0.0) || !denominator.is_finite() {
+            return;
+        }
+        let dl = -value / denominator;
+        for k in 0..4 {
+            let s = self.slots[k];
+            x[s] += g[k] * (w[s] * dl);
+        }
+    }
+}
+
+/// The corners a cube cell is integrated at (module docs).
+fn corners(odd: bool) -> [usize; 4] {
+    if odd {
+        [1, 2, 4, 7]
+    } else {
+        [0, 3, 5, 6]
+    }
+}
+
+/// Call `f` with each element of a cell of `shape`.
+fn for_each_element(shape: Shape, mut f: impl FnMut(Element)) {
+    match shape {
+        Shape::Cube { inv_h, odd } => {
+            for c in corners(odd) {
+                let sign = |bit: usize| if c & bit == 0 { inv_h } else { -inv_h };
+                f(Element {
+                    slots: [c, c ^ 1, c ^ 2, c ^ 4],
+                    m: Matrix3::from_diagonal(&V3::new(sign(1), sign(2), sign(4))),
+                });
+            }
+        }
+        Shape::Tet { dm_inv } => f(Element {
+            slots: [0, 1, 3, 7],
+            m: dm_inv,
+        }),
+    }
+}
+
+/// Both constraints of every element of one cell and its collapse barriers, on its local
+/// node copy `x`; `alphas` are the volumetric and shear compliances over Δt² (infinite: that
+/// constraint is skipped). The barriers are hard (compliance 0: no stiffness of the
+/// material lets a corner pass through itself).
+fn solve_cell(x: &mut [V3; 8], w: &[f64; 8], shape: Shape, alphas: (f64, f64)) {
+    let (hydro, dev) = alphas;
+    match shape {
+        Shape::Cube { inv_h, odd } => {
+            if hydro.is_finite() {
+                solve_cube_volume(x, w, inv_h * inv_h * inv_h, hydro);
+            }
+            if dev.is_finite() {
+                for c in corners(odd) {
+                    solve_corner(x, w, c, inv_h, dev);
+                }
+            }
+            for c in 0..8 {
+                solve_barrier(x, w, c, inv_h);
+            }
+        }
+        Shape::Tet { .. } => {
+            for_each_element(shape, |element| {
+                let f = element.gradient(x);
+                let (value, cofactor) = volume_ratio(&f);
+                if hydro.is_finite() {
+                    element.project(x, w, value - 1.0, &cofactor, hydro);
+                }
+                if value < COLLAPSE_J {
+                    let f = element.gradient(x);
+                    let (value, cofactor) = volume_ratio(&f);
+                    if value < COLLAPSE_J {
+                        element.project(x, w, value - COLLAPSE_J, &cofactor, 0.0);
+                    }
+                }
+                let f = element.gradient(x);
+                let e = green_strain(&f);
+                let value = e.norm();
+                if value > 1e-14 {
+                    element.project(x, w, value, &(f * e / value), dev);
+                }
+            });
+            // The apex's duplicate slots follow it (they are written back too).
+            for k in [2, 4, 5, 6] {
+                x[k] = x[0];
+            }
+        }
+    }
+}
+
+/// The constraints of corner `c` of a cube cell: the same arithmetic as the general
+/// element with `F`'s columns the corner's scaled edges (no matrix products: this is the
+/// solver's inner loop).
+#[inline(always)]
+fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64) {
+    let nb = [c ^ 1, c ^ 2, c ^ 4];
+    let s = corner_signs(c, inv_h);
+    let columns = |x: &[V3; 8]| {
+        [
+            (x[nb[0]] - x[c]) * s[0],
+            (x[nb[1]] - x[c]) * s[1],
+            (x[nb[2]] - x[c]) * s[2],
+        ]
+    };
+    // Move the corner's four nodes against constraint `value` whose gradient with respect to
+    // column k of F is p[k].
+    let project = |x: &mut [V3; 8], value: f64, p: [V3; 3], alpha: f64| {
+        let g = [p[0] * s[0], p[1] * s[1], p[2] * s[2]];
+        let g_apex = -(g[0] + g[1] + g[2]);
+        let denominator = alpha
+            + w[c] * g_apex.norm_squared()
+            + w[nb[0]] * g[0].norm_squared()
+            + w[nb[1]] * g[1].norm_squared()
+            + w[nb[2]] * g[2].norm_squared();
+        if !(denominator > 0.0 && denominator.is_finite()) {
+            return;
+        }
+        let dl = -value / denominator;
+        x[c] += g_apex * (w[c] * dl);
+        for k in 0..3 {
+            x[nb[k]] += g[k] * (w[nb[k]] * dl);
+        }
+    };
+    let f = columns(x);
+    // Green strain E (symmetric) and ∂‖E‖/∂F = F E / ‖E‖, column by column.
+    let e = Matrix3::new(
+        0.5 * (f[0].dot(&f[0]) - 1.0),
+        0.5 * f[0].dot(&f[1]),
+        0.5 * f[0].dot(&f[2]),
+        0.5 * f[1].dot(&f[0]),
+        0.5 * (f[1].dot(&f[1]) - 1.0),
+        0.5 * f[1].dot(&f[2]),
+        0.5 * f[2].dot(&f[0]),
+        0.5 * f[2].dot(&f[1]),
+        0.5 * (f[2].dot(&f[2]) - 1.0),
+    );
+    let value = e.norm();
+    if value > 1e-14 {
+        let inv = 1.0 / value;
+        let p = [
+            (f[0] * e[(0, 0)] + f[1] * e[(1, 0)] + f[2] * e[(2, 0)]) * inv,
+            (f[0] * e[(0, 1)] + f[1] * e[(1, 1)] + f[2] * e[(2, 1)]) * inv,
+            (f[0] * e[(0, 2)] + f[1] * e[(1, 2)] + f[2] * e[(2, 2)]) * inv,
+        ];
+        project(x, value, p, dev);
+    }
+}
+
+/// The collapse barrier `det F_c ≥ COLLAPSE_J` of corner `c` of a cube cell (at all eight
+/// corners: the shear energy sits at four, but a fold can flatten any corner's tet).
+#[inline(always)]
+fn solve_barrier(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64) {
+    let nb = [c ^ 1, c ^ 2, c ^ 4];
+    let s = corner_signs(c, inv_h);
+    let f = [0, 1, 2].map(|k| (x[nb[k]] - x[c]) * s[k]);
+    let cof = [f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])];
+    let j = f[0].dot(&cof[0]);
+    if j >= COLLAPSE_J {
+        return;
+    }
+    let g = [cof[0] * s[0], cof[1] * s[1], cof[2] * s[2]];
+    let g_apex = -(g[0] + g[1] + g[2]);
+    let denominator = w[c] * g_apex.norm_squared()
+        + w[nb[0]] * g[0].norm_squared()
+        + w[nb[1]] * g[1].norm_squared()
+        + w[nb[2]] * g[2].norm_squared();
+    if !(denominator > 0.0 && denominator.is_finite()) {
+        return;
+    }
+    let dl = -(j - COLLAPSE_J) / denominator;
+    x[c] += g_apex * (w[c] * dl);
+    for k in 0..3 {
+        x[nb[k]] += g[k] * (w[nb[k]] * dl);
+    }
+}
+
+/// `s_k / h` of corner `c`'s three edges (`+1/h` where the edge runs along +axis).
+#[inline(always)]
+fn corner_signs(c: usize, inv_h: f64) -> [f64; 3] {
+    [1, 2, 4].map(|bit| if c & bit == 0 { inv_h } else { -inv_h })
+}
+
+/// The volume of a cube cell (its six Kuhn tets) and its gradient by node.
+#[inline(always)]
+fn cube_volume(x: &[V3; 8]) -> (f64, [V3; 8]) {
+    let mut volume = 0.0;
+    let mut grad = [V3::zeros(); 8];
+    for t in crate::solver::volume::TETS {
+        let [a, b, c, d] = t;
+        let (e1, e2, e3) = (x[b] - x[a], x[c] - x[a], x[d] - x[a]);
+        let (g1, g2, g3) = (e2.cross(&e3), e3.cross(&e1), e1.cross(&e2));
+        volume += e1.dot(&g1);
+        grad[b] += g1;
+        grad[c] += g2;
+        grad[d] += g3;
+        grad[a] -= g1 + g2 + g3;
+    }
+    let sixth = 1.0 / 6.0;
+    (volume * sixth, grad.map(|g| g * sixth))
+}
+
+/// The cell's volumetric constraint `V/V_0 − 1` (`inv_volume` = 1/V_0, `alpha` its compliance
+/// over Δt²), over all eight nodes.
+#[inline(always)]
+fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64) {
+    let (volume, grad) = cube_volume(x);
+    let value = volume * inv_volume - 1.0;
+    let mut denominator = alpha;
+    for k in 0..8 {
+        denominator += w[k] * grad[k].norm_squared() * inv_volume * inv_volume;
+    }
+    if !(denominator > 0.0 && denominator.is_finite()) {
+        return;
+    }
+    let dl = -value / denominator * inv_volume;
+    for k in 0..8 {
+        x[k] += grad[k] * (w[k] * dl);
+    }
+}
+
+/// `det F` and its gradient `∂ det F / ∂F` (the cofactor matrix).
+fn volume_ratio(f: &Matrix3<f64>) -> (f64, Matrix3<f64>) {
+    let (f0, f1, f2) = (f.column(0), f.column(1), f.column(2));
+    let cofactor = Matrix3::from_columns(&[f1.cross(&f2), f2.cross(&f0), f0.cross(&f1)]);
+    (f0.dot(&f1.cross(&f2)), cofactor)
+}
+
+/// Green's strain `½ (FᵀF − I)`.
+fn green_strain(f: &Matrix3<f64>) -> Matrix3<f64> {
+    (f.transpose() * f - Matrix3::identity()) * 0.5
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_cube() -> [V3; 8] {
+        std::array::from_fn(|c| {
+            V3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64) * 0.1
+        })
+    }
+
+    fn one_cell(material: &Material) -> CellSet {
+        let mut set = CellSet::default();
+        set.push(CellInput {
+            nodes: std::array::from_fn(|c| c as u32),
+            rest: unit_cube(),
+            material,
+            stiffness_scale: 1.0,
+        });
+        set.finish(8);
+        set
+    }
+
+    #[test]
+    fn a_cell_at_rest_or_rotated_does_not_move() {
+        let rubber = Material::preset("rubber").unwrap();
+        let mut set = one_cell(&rubber);
+        let rot = nalgebra::UnitQuaternion::from_scaled_axis(V3::new(0.3, 0.9, -0.2));
+        let mut x: Vec<V3> = unit_cube().iter().map(|p| rot * p + V3::x()).collect();
+        let before = x.clone();
+        for _ in 0..20 {
+            set.solve(&mut x, &[1.0; 8], 1e-3);
+        }
+        for (a, b) in x.iter().zip(&before) {
+            assert!((a - b).norm() < 1e-9, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn an_inverted_cell_is_restored() {
+        let jelly = Material::preset("jelly").unwrap();
+        let mut set = one_cell(&jelly);
+        // Push the top face through the bottom one.
+        let mut x: Vec<V3> = unit_cube().to_vec();
+        for c in [2, 3, 6, 7] {
+            x[c].y = -0.05;
+        }
+        assert!(crate::solver::volume::cell_volume(&std::array::from_fn(|c| c as u32), &x) < 0.0);
+        for _ in 0..200 {
+            set.solve(&mut x, &[1.0; 8], 1.0 / 240.0);
+        }
+        let cell: [u32; 8] = std::array::from_fn(|c| c as u32);
+        let v = crate::solver::volume::cell_volume(&cell, &x);
+        assert!((v - 1e-3).abs() < 1e-5, "volume {v}");
+    }
+
+    #[test]
+    fn lattice_cells_take_eight_colours() {
+        let rubber = Material::preset("rubber").unwrap();
+        let mut set = CellSet::default();
+        let n = 3usize; // 3×3×3 cells, 4×4×4 nodes
+        let id = |i: usize, j: usize, k: usize| (i + 4 * (j + 4 * k)) as u32;
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let nodes = std::array::from_fn(|c| {
+                        id(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
+                    });
+                    let rest = std::array::from_fn(|c| {
+                        V3::new(
+                            (i + (c & 1)) as f64,
+                            (j + ((c >> 1) & 1)) as f64,
+                            (k + ((c >> 2) & 1)) as f64,
+                        )
+                    });
+                    set.push(CellInput {
+                        nodes,
+                        rest,
+                        material: &rubber,
+                        stiffness_scale: 1.0,
+                    });
+                }
+            }
+        }
+        set.finish(64);
+        assert_eq!(set.colours.len(), 8);
+        assert_eq!(set.serial_colour, None);
+    }
+}

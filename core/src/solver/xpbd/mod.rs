@@ -1,0 +1,486 @@
+//! The default solver: extended position-based dynamics with small steps (Macklin et al.
+//! 2016, "XPBD"; 2019, "Small Steps in Physics Simulation"). One constraint sweep per substep,
+//! a few tens of substeps per frame whatever the material's stiffness.
+//!
+//! A substep, in order (each stage its own pass over structure-of-arrays data):
+//! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the body–body /
+//!    collider contact layer of [`super::body_contact`], integrated implicitly per node:
+//!    `f m / (m + k Δt²)`, so a stiff layer pushes a node out in one substep at most and
+//!    cannot destabilise the step), `x += Δt v`;
+//! 2. **paths**: pinned and trajectory-bound nodes are put on their targets (strength 1: they
+//!    do not move in the solve);
+//! 3. **elastic solve**: the cells' volumetric constraints ([`cells`]) colour by colour, then
+//!    the springs of bodies without cells (cages built of springs only) as distance
+//!    constraints with compliance `1/k`;
+//! 4. **rigid contact**: nodes and display-surface points below the floor, the walls or
+//!    inside a capsule are projected out with Coulomb friction ([`contact`]);
+//! 5. **velocity**: `v = (x − x_prev) / Δt`, then the deformation damping towards each body's
+//!    rigid motion ([`super::deformation_damping`]; rigid motion is not damped).
+//!
+//! Rigid and particle bodies, volume preservation and joints act after the step exactly as
+//! with the papers' integrators (see [`super::World`]). Every parallel pass writes disjoint
+//! slots and reduces in fixed chunks, and the serial passes run in index order, so the result
+//! has the same bits with any thread count.
+
+mod cells;
+mod contact;
+
+use super::body_contact::step_contacts_of;
+use super::deformation_damping::{rigid_motion_in, RigidScratch};
+use super::manipulator::Capsule;
+use super::substeps::SubstepChoice;
+use super::{World, PAR_CHUNK};
+use cells::{CellInput, CellSet};
+use contact::Surfaces;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+type V3 = Vector3<f64>;
+
+/// Fewest substeps per output frame.
+pub const MIN_SUBSTEPS: u32 = 10;
+/// Most substeps per output frame chosen for the material's stiffness (a stiffer material
+/// is solved less exactly, not more slowly: the constraint sweep is what stays bounded).
+pub const MAX_STIFFNESS_SUBSTEPS: u32 = 30;
+/// Most substeps per output frame chosen for fast motion towards a surface.
+pub const MAX_SPEED_SUBSTEPS: u32 = 60;
+/// Substeps per elastic wave crossing of the shortest cell: the sweep's stiffness is within
+/// about 10 % of the material's at 2 (measured on a column under its own weight).
+const SUBSTEPS_PER_WAVE_CROSSING: f64 = 2.0;
+/// Most of the shortest cell a node may travel in one substep when a surface is near: an
+/// impact stops the touching layer within a substep and the sweep carries that to the next
+/// cells, so the layer must not be crushed first (a rubber ball dropped 1 m folds cells at
+/// 0.24 of a cell per substep, not at 0.12).
+const TRAVEL_PER_SUBSTEP: f64 = 0.1;
+/// The same for a capsule's own speed (a thin capsule sweeping a soft body creases it).
+const CAPSULE_TRAVEL_PER_SUBSTEP: f64 = 0.05;
+
+/// What the XPBD step derives from the world once (rebuilt when bodies change) and the
+/// buffers it reuses.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Model {
+    cells: CellSet,
+    /// Springs solved as distance constraints (bodies without cells).
+    springs: Vec<usize>,
+    /// Shortest rest edge of any cell or constraint spring, m.
+    shortest_edge: f64,
+    previous: Vec<V3>,
+    /// Positions after the prediction and the paths, before the elastic solve.
+    predicted: Vec<V3>,
+    inv_mass: Vec<f64>,
+    /// Per node: moved by a rigid contact this substep.
+    moved: Vec<bool>,
+    /// Per fixed node chunk: deepest penetration and the capsules' force on the nodes.
+    chunk_contact: Vec<(f64, V3)>,
+    capsules: Vec<(Capsule, Capsule)>,
+    rigid_scratch: RigidScratch,
+}
+
+/// What one step reports to the world's frame totals.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct StepOutput {
+    pub max_depth: f64,
+    /// Force of the capsules on the bodies, N (the manipulators feel its opposite).
+    pub capsule_force: V3,
+    /// Whether any contact moved a node (see `Model::moved`).
+    pub touched: bool,
+}
+
+impl Model {
+    pub(crate) fn build(world: &World) -> Model {
+        let n = world.nodes.len();
+        let mut kept: Vec<u32> = (0..n as u32).collect();
+        for shared in &world.joints {
+            kept[shared.follower] = super::joints::resolve(world, shared.kept) as u32;
+        }
+        let mut cells = CellSet::default();
+        let mut springs = Vec::new();
+        for (b, body) in world.bodies.iter().enumerate() {
+            if world.rigid.iter().any(|r| r.body == b) {
+                continue;
+            }
+            match &body.material {
+                Some(material) if !body.cells.is_empty() => {
+                    for (c, cell) in body.cells.iter().enumerate() {
+                        cells.push(CellInput {
+                            nodes: cell.map(|i| kept[i as usize]),
+                            rest: cell.map(|i| world.rest[i as usize]),
+                            material,
+                            stiffness_scale: body.cell_stiffness.get(c).copied().unwrap_or(1.0),
+                        });
+                    }
+                }
+                _ => springs.extend(body.springs.clone()),
+            }
+        }
+        cells.finish(n);
+        let s = &world.springs;
+        let shortest_spring = springs
+            .iter()
+            .map(|&i| s.rest_length[i])
+            .fold(f64::INFINITY, f64::min);
+        let shortest_edge = if cells.len() > 0 {
+            cells.shortest_edge.min(shortest_spring)
+        } else {
+            shortest_spring
+        };
+        Model {
+            cells,
+            springs,
+            shortest_edge,
+            previous: vec![V3::zeros(); n],
+            predicted: vec![V3::zeros(); n],
+            inv_mass: vec![0.0; n],
+            moved: vec![false; n],
+            chunk_contact: vec![(0.0, V3::zeros()); n.div_ceil(PAR_CHUNK)],
+            capsules: Vec::new(),
+            rigid_scratch: RigidScratch::default(),
+        }
+    }
+
+    /// Elastic energy of the cells and constraint springs now, J.
+    pub(crate) fn elastic_energy(&self, world: &World) -> f64 {
+        let x = &world.nodes.position;
+        let s = &world.springs;
+        let springs: f64 = self
+            .springs
+            .iter()
+            .map(|&i| {
+                let stretch = (x[s.a[i] as usize] - x[s.b[i] as usize]).norm() - s.rest_length[i];
+                0.5 * s.stiffness[i] * stretch * stretch
+            })
+            .sum();
+        self.cells.energy(x) + springs
+    }
+}
+
+/// Substeps for an output frame of `frame_dt` seconds (at least [`MIN_SUBSTEPS`]): enough
+/// for [`SUBSTEPS_PER_WAVE_CROSSING`] per crossing of the shortest cell by an elastic wave
+/// (`sqrt(E/ρ)`), at most [`MAX_STIFFNESS_SUBSTEPS`]; with any surface to touch, also
+/// enough that no node travels more than [`TRAVEL_PER_SUBSTEP`] of the shortest cell (a
+/// capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most [`MAX_SPEED_SUBSTEPS`].
+pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice {
+    if world.xpbd.is_none() {
+        world.xpbd = Some(Model::build(world));
+    }
+    let (h, speed) = world.xpbd.as_ref().map_or((f64::INFINITY, 0.0), |m| {
+        (m.shortest_edge, m.cells.wave_speed)
+    });
+    let mut n = MIN_SUBSTEPS as f64;
+    let mut limited_by = "minimum";
+    let sized = h.is_finite() && h > 0.0;
+    if sized && speed > 0.0 {
+        let by_wave = (SUBSTEPS_PER_WAVE_CROSSING * frame_dt * speed / h).ceil();
+        if by_wave > n {
+            n = by_wave.min(MAX_STIFFNESS_SUBSTEPS as f64);
+            limited_by = if by_wave > n {
+                "stiffness cap"
+            } else {
+                "stiffness"
+            };
+        }
+    }
+    let time = world.time;
+    let capsule_speed = world
+        .manipulators
+        .iter()
+        .map(|m| m.capsule_at(time).velocity.norm())
+        .chain(world.live_capsules.iter().map(|c| c.velocity.norm()))
+        .fold(0.0, f64::max);
+    let surfaces = !world.settings.planes.is_empty() || world.body_contact.any();
+    if sized && (surfaces || capsule_speed > 0.0 || !world.manipulators.is_empty()) {
+        let v = &world.nodes.velocity;
+        let v_max = super::parallel_max(v.len(), |i| v[i].norm());
+        let by_speed = (v_max * frame_dt / (TRAVEL_PER_SUBSTEP * h))
+            .max(capsule_speed * frame_dt / (CAPSULE_TRAVEL_PER_SUBSTEP * h))
+            .ceil();
+        if by_speed > n {
+            n = by_speed.min(MAX_SPEED_SUBSTEPS as f64);
+            limited_by = if by_speed > n { "speed cap" } else { "speed" };
+        }
+    }
+    SubstepChoice {
+        substeps: n as u32,
+        dt: frame_dt / n,
+        limited_by,
+    }
+}
+
+/// One XPBD substep of `dt` seconds (module docs). Advances the world's time.
+pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
+    if world.xpbd.is_none() {
+        world.xpbd = Some(Model::build(world));
+    }
+    let mut model = world.xpbd.take().unwrap_or_default();
+    // The contact log and the body–body / collider layer forces, at the substep's start.
+    step_contacts_of(world, dt);
+    let time = world.time;
+    predict(world, &mut model, dt);
+    bind_paths(world, &mut model, time + dt);
+    model.predicted.copy_from_slice(&world.nodes.position);
+    model
+        .cells
+        .solve(&mut world.nodes.position, &model.inv_mass, dt);
+    solve_springs(world, &model, dt);
+    cancel_internal_torque(world, &mut model);
+    let out = rigid_contacts(world, &mut model, time, dt);
+    if out.touched {
+        let (w, moved) = (&model.inv_mass, &model.moved);
+        model
+            .cells
+            .solve_barriers(&mut world.nodes.position, w, moved);
+    }
+    update_velocities(world, &model, dt);
+    damp_deformation(world, &mut model, dt);
+    world.time += dt;
+    world.xpbd = Some(model);
+    out
+}
+
+/// Stage 1: external forces and the predicted positions.
+fn predict(world: &mut World, model: &mut Model, dt: f64) {
+    let gravity = world.settings.gravity;
+    let wind = world.settings.wind.map(|w| (w, w.air_velocity(world.time)));
+    let layer_k = world.settings.layer.stiffness;
+    let bc = &world.body_contact;
+    let body_force = bc.active.then_some(&bc.force[..]);
+    let nodes = &mut world.nodes;
+    let mass = &nodes.mass[..];
+    model.inv_mass.copy_from_slice(&nodes.inv_mass);
+    nodes
+        .position
+        .par_chunks_mut(PAR_CHUNK)
+        .zip(nodes.velocity.par_chunks_mut(PAR_CHUNK))
+        .zip(model.previous.par_chunks_mut(PAR_CHUNK))
+        .enumerate()
+        .for_each(|(chunk, ((xs, vs), prev))| {
+            for j in 0..xs.len() {
+                let i = chunk * PAR_CHUNK + j;
+                prev[j] = xs[j];
+                let m = mass[i];
+                if m <= 0.0 {
+                    continue;
+                }
+                let mut f = V3::zeros();
+                if let Some((w, air)) = wind {
+                    f += w.force(air, vs[j], m);
+                }
+                if let Some(bf) = body_force {
+                    f += bf[i] * (m / (m + layer_k * dt * dt));
+                }
+                vs[j] += (gravity + f / m) * dt;
+                xs[j] += vs[j] * dt;
+            }
+        });
+}
+
+/// Stage 2: nodes bound to paths go to their targets at `t`; exact ones stop moving in the
+/// solve.
+fn bind_paths(world: &mut World, model: &mut Model, t: f64) {
+    for c in &world.constraints {
+        for (j, &i) in c.nodes.iter().enumerate() {
+            let target = c.target(j, t);
+            let x = &mut world.nodes.position[i];
+            if c.strength >= 1.0 {
+                *x = target;
+                model.inv_mass[i] = 0.0;
+            } else {
+                *x += (target - *x) * c.strength;
+            }
+        }
+    }
+}
+
+/// Stage 3b: springs of bodies without cells, as distance constraints (serial, in order).
+fn solve_springs(world: &mut World, model: &Model, dt: f64) {
+    let s = &world.springs;
+    let x = &mut world.nodes.position;
+    let w = &model.inv_mass;
+    let inv_dt2 = 1.0 / (dt * dt);
+    for &i in &model.springs {
+        let (a, b) = (s.a[i] as usize, s.b[i] as usize);
+        let d = x[a] - x[b];
+        let length = d.norm();
+        let wsum = w[a] + w[b];
+        if length <= 1e-15 || wsum <= 0.0 || s.stiffness[i] <= 0.0 {
+            continue;
+        }
+        let n = d / length;
+        let dl = -(length - s.rest_length[i]) / (wsum + inv_dt2 / s.stiffness[i]);
+        x[a] += n * (w[a] * dl);
+        x[b] -= n * (w[b] * dl);
+    }
+}
+
+/// Stage 3c: internal forces exert no torque. Each projection of a rotation-invariant
+/// constraint keeps angular momentum about the positions it was evaluated at, but the sweep
+/// evaluates them at the moving intermediate positions, which leaks spin at a rate of about
+/// `ω² Δt` (6 % per second for a body turning once a second at 720 substeps/s). Per body, the
+/// angular impulse of the elastic corrections about the substep's start,
+/// `ΔL = Σ m (x_n − c) × (x − x̃)`, is removed by a rotation `δθ = I⁻¹ ΔL` of the
+/// corrections (bodies with pinned or path-bound nodes are left alone: their constraint forces
+/// are external).
+fn cancel_internal_torque(world: &mut World, model: &mut Model) {
+    let nodes = &mut world.nodes;
+    for body in &world.bodies {
+        let range = body.nodes.clone();
+        if range.is_empty()
+            || range
+                .clone()
+                .any(|i| model.inv_mass[i] <= 0.0 && nodes.mass[i] > 0.0)
+        {
+            continue;
+        }
+        let (mut mass, mut centre) = (0.0, V3::zeros());
+        for i in range.clone() {
+            mass += nodes.mass[i];
+            centre += model.previous[i] * nodes.mass[i];
+        }
+        if mass <= 0.0 {
+            continue;
+        }
+        centre /= mass;
+        let (mut torque, mut inertia) = (V3::zeros(), nalgebra::Matrix3::zeros());
+        for i in range.clone() {
+            let r = model.previous[i] - centre;
+            let m = nodes.mass[i];
+            torque += r.cross(&(nodes.position[i] - model.predicted[i])) * m;
+            inertia += (nalgebra::Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
+        }
+        let Some(turn) = inertia.try_inverse().map(|inv| inv * torque) else {
+            continue;
+        };
+        for i in range {
+            if nodes.mass[i] > 0.0 {
+                nodes.position[i] -= turn.cross(&(model.previous[i] - centre));
+            }
+        }
+    }
+}
+
+/// Stage 4: contact with the floor, walls and capsules (nodes in parallel, display-surface
+/// points serially in point order).
+fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> StepOutput {
+    model.capsules.clear();
+    model.capsules.extend(
+        world
+            .manipulators
+            .iter()
+            .map(|m| (m.capsule_at(time + dt), m.capsule_at(time))),
+    );
+    model.capsules.extend(world.live_capsules.iter().map(|c| {
+        let mut before = *c;
+        before.centre -= c.velocity * dt;
+        (*c, before)
+    }));
+    let surfaces = Surfaces {
+        planes: &world.settings.planes,
+        friction: world.settings.layer.friction,
+        capsules: &model.capsules,
+    };
+    let mut out = StepOutput::default();
+    if surfaces.planes.is_empty() && surfaces.capsules.is_empty() {
+        return out;
+    }
+    model.moved.fill(false);
+    let inv_dt2 = 1.0 / (dt * dt);
+    let (w, prev) = (&model.inv_mass[..], &model.previous[..]);
+    let (mass, takes) = (&world.nodes.mass[..], &world.node_contact[..]);
+    world
+        .nodes
+        .position
+        .par_chunks_mut(PAR_CHUNK)
+        .zip(model.moved.par_chunks_mut(PAR_CHUNK))
+        .zip(model.chunk_contact.par_iter_mut())
+        .enumerate()
+        .for_each(|(chunk, ((xs, moved), sums))| {
+            let mut deepest = 0.0f64;
+            let mut force = V3::zeros();
+            for (j, (x, moved)) in xs.iter_mut().zip(moved.iter_mut()).enumerate() {
+                let i = chunk * PAR_CHUNK + j;
+                *moved = false;
+                if !takes[i] || w[i] <= 0.0 {
+                    continue;
+                }
+                let c = surfaces.resolve(*x, prev[i]);
+                if c.depth > 0.0 {
+                    *x += c.correction;
+                    *moved = true;
+                    deepest = deepest.max(c.depth);
+                    force += c.from_capsules * (mass[i] * inv_dt2);
+                }
+            }
+            *sums = (deepest, force);
+        });
+    for &(deepest, force) in &model.chunk_contact {
+        out.touched |= deepest > 0.0;
+        out.max_depth = out.max_depth.max(deepest);
+        out.capsule_force += force;
+    }
+    let surface = &world.surface;
+    let x = &mut world.nodes.position;
+    for i in 0..surface.len() {
+        let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
+        if surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]) {
+            continue;
+        }
+        let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
+        for c in 0..8 {
+            let n = ids[c] as usize;
+            p += x[n] * weights[c];
+            p_prev += prev[n] * weights[c];
+            denominator += weights[c] * weights[c] * w[n];
+        }
+        if denominator <= 0.0 {
+            continue;
+        }
+        let c = surfaces.resolve(p, p_prev);
+        if c.depth <= 0.0 {
+            continue;
+        }
+        out.touched = true;
+        out.max_depth = out.max_depth.max(c.depth);
+        out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
+        for k in 0..8 {
+            let n = ids[k] as usize;
+            x[n] += c.correction * (weights[k] * w[n] / denominator);
+            model.moved[n] = true;
+        }
+    }
+    out
+}
+
+/// Stage 5a: velocities from the positions' change.
+fn update_velocities(world: &mut World, model: &Model, dt: f64) {
+    let inv_dt = 1.0 / dt;
+    let nodes = &mut world.nodes;
+    let (mass, prev) = (&nodes.mass[..], &model.previous[..]);
+    let x = &nodes.position[..];
+    nodes
+        .velocity
+        .par_chunks_mut(PAR_CHUNK)
+        .enumerate()
+        .for_each(|(chunk, vs)| {
+            for (j, v) in vs.iter_mut().enumerate() {
+                let i = chunk * PAR_CHUNK + j;
+                if mass[i] > 0.0 {
+                    *v = (x[i] - prev[i]) * inv_dt;
+                }
+            }
+        });
+}
+
+/// Stage 5b: every node pulled towards its body's rigid motion (momentum kept exactly).
+fn damp_deformation(world: &mut World, model: &mut Model, dt: f64) {
+    for body in world.bodies.iter().filter(|b| b.deformation_damping > 0.0) {
+        let nodes = &mut world.nodes;
+        let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut model.rigid_scratch);
+        let pull = (body.deformation_damping * dt).min(1.0);
+        let range = body.nodes.clone();
+        let (pos, vel) = (&nodes.position[range.clone()], &mut nodes.velocity[range]);
+        vel.par_iter_mut()
+            .with_min_len(PAR_CHUNK)
+            .zip(pos.par_iter())
+            .for_each(|(v, x)| *v += (rigid.velocity_at(x) - *v) * pull);
+    }
+}
