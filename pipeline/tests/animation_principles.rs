@@ -166,9 +166,12 @@ fn secondary_action_child_hangs_on_its_parent_by_three_nodes() {
         dropped.abs() < 0.005,
         "the tail's top moved {dropped} m down"
     );
-    // …and its free end lags behind: the tail is bent, not carried rigidly.
+    // …and its free end lags behind: the tail is bent, not carried rigidly (which would give
+    // 0). The nearly incompressible jelly (ν = 0.49) of the volumetric cells bends less in a
+    // one-cell-thick tail than the papers' spring lattice did (3 mm against 1 cm at 0.25 s;
+    // ν = 0 gives 9 mm): see the solver issue's note.
     let lag = lag_of_tip(&p.world, tail);
-    assert!(lag > 0.01, "tip lag {lag} m");
+    assert!(lag > 0.002, "tip lag {lag} m");
 }
 
 /// How far the tail's lowest nodes are behind (−x) its top nodes.
