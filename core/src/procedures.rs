@@ -644,6 +644,9 @@ pub fn change_material(
         model.longest_m,
     );
     if let Some(body) = world.bodies.get_mut(h.0) {
+        // The XPBD cells take E from the material itself: undo the uniform factor the
+        // spring pass above recorded (any anisotropy stays).
+        body.axis_stiffness = body.axis_stiffness.map(|s| s / k_ratio);
         body.material = Some(to.clone());
     }
     world.invalidate_prepared();

@@ -115,6 +115,9 @@ pub struct BodyInfo {
     pub material: Option<Material>,
     /// Per cell: stiffness factor set by regions (empty: 1 everywhere).
     pub cell_stiffness: Vec<f64>,
+    /// Stiffness factor per axis (anisotropy, [`World::scale_stiffness_per_axis`]): the XPBD
+    /// cells weight their strain components by it.
+    pub axis_stiffness: [f64; 3],
 }
 
 /// All simulated bodies and what they touch.
@@ -470,6 +473,7 @@ impl World {
             grid: None,
             material: None,
             cell_stiffness: Vec::new(),
+            axis_stiffness: [1.0; 3],
         });
         self.invalidate_prepared();
         BodyHandle(self.bodies.len() - 1)
@@ -512,6 +516,11 @@ impl World {
             self.node_contact[n] = false;
         }
         self.invalidate_prepared();
+    }
+
+    /// Where node `i` was when its body was added (its rest position).
+    pub fn rest_position(&self, i: usize) -> Vector3<f64> {
+        self.rest[i]
     }
 
     /// Node positions of one body.
@@ -1428,6 +1437,10 @@ impl World {
             let factor = (scale.x * r.x * r.x + scale.y * r.y * r.y + scale.z * r.z * r.z) / len_sq;
             s.stiffness[i] *= factor;
             s.damping[i] *= factor.sqrt();
+        }
+        let body_info = &mut self.bodies[body.0];
+        for k in 0..3 {
+            body_info.axis_stiffness[k] *= scale[k];
         }
         self.invalidate_prepared();
         Ok(())

@@ -75,6 +75,11 @@ pub(crate) struct CellInput<'a> {
     pub material: &'a Material,
     /// Stiffness factor of the cell (regions), 1 by default.
     pub stiffness_scale: f64,
+    /// Stiffness factor per axis (anisotropy), `[1, 1, 1]` by default: the shear energy
+    /// weights strain component `E_ij` by `sqrt(s_i s_j)` (a stretch along x meets `s_x` times
+    /// the stiffness, as the spring lattice's edges along x do), the volume term by the
+    /// geometric mean.
+    pub axis_scale: [f64; 3],
 }
 
 /// All elastic cells of a world, ordered by colour.
@@ -86,6 +91,8 @@ pub(crate) struct CellSet {
     hydro_alpha: Vec<f64>,
     /// Compliance of the deviatoric constraint per element, `1/(2 μ V_c)`.
     dev_alpha: Vec<f64>,
+    /// Per cell: `sqrt` of the per-axis stiffness factors (`[1, 1, 1]`: isotropic).
+    axis_root: Vec<[f64; 3]>,
     /// Cells of each colour; the last one may be `serial` (cells that share nodes).
     colours: Vec<Range<usize>>,
     serial_colour: Option<usize>,
@@ -105,17 +112,20 @@ impl CellSet {
     /// out.
     pub(crate) fn push(&mut self, cell: CellInput) {
         let (mu, lambda) = lame(cell.material);
-        let (mu, lambda) = (mu * cell.stiffness_scale, lambda * cell.stiffness_scale);
-        let speed =
-            (cell.material.young_pa * cell.stiffness_scale / cell.material.density_kg_m3).sqrt();
+        let [sx, sy, sz] = cell.axis_scale;
+        let mean = (sx * sy * sz).cbrt();
+        let (mu, lambda) = (
+            mu * cell.stiffness_scale,
+            lambda * cell.stiffness_scale * mean,
+        );
+        let stiffest = sx.max(sy).max(sz) * cell.stiffness_scale;
+        let speed = (cell.material.young_pa * stiffest / cell.material.density_kg_m3).sqrt();
+        let root = cell.axis_scale.map(f64::sqrt);
         if crate::cage::is_tet_cell(&cell.nodes) {
-            self.push_tet(
-                cell.nodes,
-                [0, 1, 3, 7].map(|c| cell.rest[c]),
-                mu,
-                lambda,
-                speed,
-            );
+            let rest = [0, 1, 3, 7].map(|c| cell.rest[c]);
+            if self.push_tet(cell.nodes, rest, mu, lambda, speed) {
+                self.axis_root.push(root);
+            }
             return;
         }
         let r = &cell.rest;
@@ -141,27 +151,32 @@ impl CellSet {
             });
             self.hydro_alpha.push(compliance(lambda * h * h * h));
             self.dev_alpha.push(compliance(2.0 * mu * corner_volume));
+            self.axis_root.push(root);
             self.note_scale(h, speed);
         } else {
             // Not an axis-aligned cube: Kuhn's six tets (see `volume::TETS`).
             for t in crate::solver::volume::TETS {
                 let nodes = t.map(|c| cell.nodes[c]);
-                self.push_tet(
-                    crate::cage::tet_cell(nodes),
-                    t.map(|c| cell.rest[c]),
-                    mu,
-                    lambda,
-                    speed,
-                );
+                let rest = t.map(|c| cell.rest[c]);
+                if self.push_tet(crate::cage::tet_cell(nodes), rest, mu, lambda, speed) {
+                    self.axis_root.push(root);
+                }
             }
         }
     }
 
-    fn push_tet(&mut self, nodes: [u32; 8], rest: [V3; 4], mu: f64, lambda: f64, speed: f64) {
+    fn push_tet(
+        &mut self,
+        nodes: [u32; 8],
+        rest: [V3; 4],
+        mu: f64,
+        lambda: f64,
+        speed: f64,
+    ) -> bool {
         let dm = Matrix3::from_columns(&[rest[1] - rest[0], rest[2] - rest[0], rest[3] - rest[0]]);
         let volume = dm.determinant() / 6.0;
         let Some(dm_inv) = dm.try_inverse().filter(|_| volume > 0.0) else {
-            return;
+            return false;
         };
         let shortest = (1..4)
             .map(|k| (rest[k] - rest[0]).norm())
@@ -171,6 +186,7 @@ impl CellSet {
         self.hydro_alpha.push(compliance(lambda * volume));
         self.dev_alpha.push(compliance(2.0 * mu * volume));
         self.note_scale(shortest, speed);
+        true
     }
 
     fn note_scale(&mut self, edge: f64, speed: f64) {
@@ -208,7 +224,8 @@ impl CellSet {
         let shape = order.iter().map(|&i| self.shape[i]).collect();
         let hydro = order.iter().map(|&i| self.hydro_alpha[i]).collect();
         let dev = order.iter().map(|&i| self.dev_alpha[i]).collect();
-        (self.nodes, self.shape) = (nodes, shape);
+        let axis = order.iter().map(|&i| self.axis_root[i]).collect();
+        (self.nodes, self.shape, self.axis_root) = (nodes, shape, axis);
         (self.hydro_alpha, self.dev_alpha) = (hydro, dev);
         self.colours.clear();
         self.serial_colour = None;
@@ -236,12 +253,13 @@ impl CellSet {
             let shape = &self.shape[range.clone()];
             let hydro = &self.hydro_alpha[range.clone()];
             let dev = &self.dev_alpha[range.clone()];
+            let axis = &self.axis_root[range.clone()];
             if Some(colour) == self.serial_colour {
                 for j in 0..nodes.len() {
                     let mut local = nodes[j].map(|n| x[n as usize]);
                     let wl = nodes[j].map(|n| w[n as usize]);
                     let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                    solve_cell(&mut local, &wl, shape[j], alphas);
+                    solve_cell(&mut local, &wl, shape[j], alphas, &axis[j]);
                     for (k, &n) in nodes[j].iter().enumerate() {
                         x[n as usize] = local[k];
                     }
@@ -258,7 +276,7 @@ impl CellSet {
                         *local = nodes[j].map(|n| xs[n as usize]);
                         let wl = nodes[j].map(|n| w[n as usize]);
                         let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                        solve_cell(local, &wl, shape[j], alphas);
+                        solve_cell(local, &wl, shape[j], alphas, &axis[j]);
                     });
             }
             for (cell, local) in nodes.iter().zip(out.iter()) {
@@ -279,7 +297,14 @@ impl CellSet {
             }
             let mut local = cell.map(|n| x[n as usize]);
             let wl = cell.map(|n| w[n as usize]);
-            solve_cell(&mut local, &wl, shape, (f64::INFINITY, f64::INFINITY));
+            let unused = [1.0; 3];
+            solve_cell(
+                &mut local,
+                &wl,
+                shape,
+                (f64::INFINITY, f64::INFINITY),
+                &unused,
+            );
             for (k, &n) in cell.iter().enumerate() {
                 x[n as usize] = local[k];
             }
@@ -296,13 +321,18 @@ impl CellSet {
                 let c_h = cube_volume(&local).0 * inv_h * inv_h * inv_h - 1.0;
                 total += 0.5 * kh * c_h * c_h;
             }
+            let r = self.axis_root[j];
             for_each_element(self.shape[j], |element| {
                 let f = element.gradient(&local);
+                let e = green_strain(&f);
                 if let Shape::Tet { .. } = self.shape[j] {
                     let c_h = f.determinant() - 1.0;
                     total += 0.5 * kh * c_h * c_h;
+                    total += 0.5 * kd * e.norm_squared();
+                } else {
+                    let weighted = Matrix3::from_fn(|i, k| e[(i, k)] * r[i] * r[k]);
+                    total += 0.5 * kd * e.dot(&weighted);
                 }
-                total += 0.5 * kd * green_strain(&f).norm_squared();
             });
         }
         total
@@ -351,16 +381,15 @@ impl Element {
             h.column(2).into_owned(),
         ];
         let mut denominator = alpha;
-        for k in 0..4 {
-            denominator += w[self.slots[k]] * g[k].norm_squared();
+        for (&s, g) in self.slots.iter().zip(&g) {
+            denominator += w[s] * g.norm_squared();
         }
-        if !(denominator > 0.0) || !denominator.is_finite() {
+        if !(denominator > 0.0 && denominator.is_finite()) {
             return;
         }
         let dl = -value / denominator;
-        for k in 0..4 {
-            let s = self.slots[k];
-            x[s] += g[k] * (w[s] * dl);
+        for (&s, g) in self.slots.iter().zip(&g) {
+            x[s] += g * (w[s] * dl);
         }
     }
 }
@@ -397,7 +426,13 @@ fn for_each_element(shape: Shape, mut f: impl FnMut(Element)) {
 /// node copy `x`; `alphas` are the volumetric and shear compliances over Δt² (infinite: that
 /// constraint is skipped). The barriers are hard (compliance 0: no stiffness of the
 /// material lets a corner pass through itself).
-fn solve_cell(x: &mut [V3; 8], w: &[f64; 8], shape: Shape, alphas: (f64, f64)) {
+fn solve_cell(
+    x: &mut [V3; 8],
+    w: &[f64; 8],
+    shape: Shape,
+    alphas: (f64, f64),
+    axis_root: &[f64; 3],
+) {
     let (hydro, dev) = alphas;
     match shape {
         Shape::Cube { inv_h, odd } => {
@@ -406,7 +441,7 @@ fn solve_cell(x: &mut [V3; 8], w: &[f64; 8], shape: Shape, alphas: (f64, f64)) {
             }
             if dev.is_finite() {
                 for c in corners(odd) {
-                    solve_corner(x, w, c, inv_h, dev);
+                    solve_corner(x, w, c, inv_h, dev, axis_root);
                 }
             }
             for c in 0..8 {
@@ -446,7 +481,14 @@ fn solve_cell(x: &mut [V3; 8], w: &[f64; 8], shape: Shape, alphas: (f64, f64)) {
 /// element with `F`'s columns the corner's scaled edges (no matrix products: this is the
 /// solver's inner loop).
 #[inline(always)]
-fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64) {
+fn solve_corner(
+    x: &mut [V3; 8],
+    w: &[f64; 8],
+    c: usize,
+    inv_h: f64,
+    dev: f64,
+    axis_root: &[f64; 3],
+) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = corner_signs(c, inv_h);
     let columns = |x: &[V3; 8]| {
@@ -488,13 +530,17 @@ fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64) {
         0.5 * f[2].dot(&f[1]),
         0.5 * (f[2].dot(&f[2]) - 1.0),
     );
-    let value = e.norm();
+    // Anisotropy: C = sqrt(Σ W_ij E_ij²), W_ij = r_i r_j, ∂C/∂F = F (W∘E) / C.
+    let r = axis_root;
+    let weighted = Matrix3::from_fn(|i, j| e[(i, j)] * r[i] * r[j]);
+    let value = e.dot(&weighted).sqrt();
     if value > 1e-14 {
         let inv = 1.0 / value;
+        let we = weighted;
         let p = [
-            (f[0] * e[(0, 0)] + f[1] * e[(1, 0)] + f[2] * e[(2, 0)]) * inv,
-            (f[0] * e[(0, 1)] + f[1] * e[(1, 1)] + f[2] * e[(2, 1)]) * inv,
-            (f[0] * e[(0, 2)] + f[1] * e[(1, 2)] + f[2] * e[(2, 2)]) * inv,
+            (f[0] * we[(0, 0)] + f[1] * we[(1, 0)] + f[2] * we[(2, 0)]) * inv,
+            (f[0] * we[(0, 1)] + f[1] * we[(1, 1)] + f[2] * we[(2, 1)]) * inv,
+            (f[0] * we[(0, 2)] + f[1] * we[(1, 2)] + f[2] * we[(2, 2)]) * inv,
         ];
         project(x, value, p, dev);
     }
@@ -601,6 +647,7 @@ mod tests {
             rest: unit_cube(),
             material,
             stiffness_scale: 1.0,
+            axis_scale: [1.0; 3],
         });
         set.finish(8);
         set
@@ -663,6 +710,7 @@ mod tests {
                         rest,
                         material: &rubber,
                         stiffness_scale: 1.0,
+                        axis_scale: [1.0; 3],
                     });
                 }
             }
