@@ -273,3 +273,96 @@ fn the_same_bits_with_one_two_and_eight_threads() {
     assert_eq!(one, run(2));
     assert_eq!(one, run(8));
 }
+
+/// Two rubber cubes (0.5 m, 6 cells) side by side with a gap of `gap` metres (negative:
+/// overlapping), no gravity: the fastest node speed over 12 frames and the change of the
+/// gap between their centres.
+fn neighbours(gap: f64) -> (f64, f64) {
+    let rubber = Material::preset("rubber").unwrap();
+    let mut w = World::new(WorldSettings {
+        gravity: Vector3::zeros(),
+        layer: WorldSettings::default_layer(0.5 / 6.0, &rubber, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    });
+    let mut cubes = Vec::new();
+    for (i, x0) in [0.0, 0.5 + gap].into_iter().enumerate() {
+        let m = mesh(box_mesh([x0, 0.0, 0.0], [x0 + 0.5, 0.5, 0.5]), 6);
+        let h = w.add_lattice_body(format!("cube{i}"), &m.lattice, &rubber, Vector3::zeros());
+        let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+        w.add_contact_surface(h, &m.lattice, &samples, &areas);
+        w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
+        cubes.push(h);
+    }
+    let centre_x = |w: &World, h: BodyHandle| {
+        let xs = w.body_positions(h);
+        xs.iter().map(|p| p.x).sum::<f64>() / xs.len() as f64
+    };
+    let gap0 = centre_x(&w, cubes[1]) - centre_x(&w, cubes[0]);
+    let mut fastest = 0.0f64;
+    for f in 1..=12 {
+        fastest = fastest.max(frame(&mut w, f).max_speed);
+    }
+    (
+        fastest,
+        centre_x(&w, cubes[1]) - centre_x(&w, cubes[0]) - gap0,
+    )
+}
+
+/// Parts that start a centimetre apart (inside each other's contact layer) or overlapping by
+/// 5 mm separate slowly instead of flying apart (the layer's stored push threw such parts
+/// apart at metres per second).
+#[test]
+fn parts_that_start_close_or_overlapping_separate_without_gaining_speed() {
+    for gap in [0.01, -0.005] {
+        let (fastest, opened) = neighbours(gap);
+        assert!(fastest < 0.2, "gap {gap}: fastest node {fastest} m/s");
+        assert!(opened > 0.0, "gap {gap}: the parts moved {opened} m apart");
+    }
+}
+
+/// The same contact layer still bounces a body that falls onto another: a rubber cube dropped
+/// 0.75 m onto a resting one rises again after the impact.
+#[test]
+fn a_body_falling_onto_another_still_bounces() {
+    let rubber = Material::preset("rubber").unwrap();
+    let mut w = World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(0.5 / 6.0, &rubber, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    });
+    let mut cubes = Vec::new();
+    for (i, y0) in [0.0, 1.25].into_iter().enumerate() {
+        let m = mesh(box_mesh([0.0, y0, 0.0], [0.5, y0 + 0.5, 0.5]), 6);
+        let h = w.add_lattice_body(format!("cube{i}"), &m.lattice, &rubber, Vector3::zeros());
+        let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+        w.add_contact_surface(h, &m.lattice, &samples, &areas);
+        w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
+        cubes.push(h);
+    }
+    let bottom = |w: &World| {
+        w.body_positions(cubes[1])
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (mut lowest, mut rebound) = (f64::INFINITY, f64::NEG_INFINITY);
+    for f in 1..=30 {
+        frame(&mut w, f);
+        let b = bottom(&w);
+        if b < lowest {
+            lowest = b;
+            rebound = b;
+        }
+        rebound = rebound.max(b);
+    }
+    assert!(lowest < 0.6, "the top cube reached {lowest} m");
+    assert!(
+        rebound > lowest + 0.1,
+        "rose to {rebound} m from {lowest} m"
+    );
+}

@@ -4,9 +4,9 @@
 //!
 //! A substep, in order (each stage its own pass over structure-of-arrays data):
 //! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the body–body /
-//!    collider contact layer of [`super::body_contact`], integrated implicitly per node:
-//!    `f m / (m + k Δt²)`, so a stiff layer pushes a node out in one substep at most and
-//!    cannot destabilise the step), `x += Δt v`;
+//!    collider contact layer of [`super::body_contact`], integrated implicitly per node,
+//!    `Δv = f Δt / (m + k Δt²)`, so a stiff layer cannot destabilise the step; beyond
+//!    [`MAX_SEPARATION_SPEED`] apart its push moves the node without speeding it), `x += Δt v`;
 //! 2. **paths**: pinned and trajectory-bound nodes are put on their targets (strength 1: they
 //!    do not move in the solve);
 //! 3. **elastic solve**: the cells' volumetric constraints ([`cells`]) colour by colour, then
@@ -67,6 +67,11 @@ pub(crate) struct Model {
     previous: Vec<V3>,
     /// Positions after the prediction and the paths, before the elastic solve.
     predicted: Vec<V3>,
+    /// Per node: the body contacts' push beyond [`MAX_SEPARATION_SPEED`] this substep, m.
+    shift: Vec<V3>,
+    /// Per node: in a body contact since the model was built (parts that start touching or
+    /// overlapping); cleared for good at the first substep the node is free.
+    overlapping: Vec<bool>,
     inv_mass: Vec<f64>,
     /// Per node: moved by a rigid contact this substep.
     moved: Vec<bool>,
@@ -131,6 +136,8 @@ impl Model {
             shortest_edge,
             previous: vec![V3::zeros(); n],
             predicted: vec![V3::zeros(); n],
+            shift: vec![V3::zeros(); n],
+            overlapping: vec![true; n],
             inv_mass: vec![0.0; n],
             moved: vec![false; n],
             chunk_contact: vec![(0.0, V3::zeros()); n.div_ceil(PAR_CHUNK)],
@@ -217,6 +224,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     step_contacts_of(world, dt);
     let time = world.time;
     predict(world, &mut model, dt);
+    shift_bodies(world, &mut model);
     bind_paths(world, &mut model, time + dt);
     model.predicted.copy_from_slice(&world.nodes.position);
     model
@@ -253,8 +261,10 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
         .par_chunks_mut(PAR_CHUNK)
         .zip(nodes.velocity.par_chunks_mut(PAR_CHUNK))
         .zip(model.previous.par_chunks_mut(PAR_CHUNK))
+        .zip(model.shift.par_chunks_mut(PAR_CHUNK))
+        .zip(model.overlapping.par_chunks_mut(PAR_CHUNK))
         .enumerate()
-        .for_each(|(chunk, ((xs, vs), prev))| {
+        .for_each(|(chunk, ((((xs, vs), prev), shift), overlapping))| {
             for j in 0..xs.len() {
                 let i = chunk * PAR_CHUNK + j;
                 prev[j] = xs[j];
@@ -266,13 +276,74 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
                 if let Some((w, air)) = wind {
                     f += w.force(air, vs[j], m);
                 }
-                if let Some(bf) = body_force {
-                    f += bf[i] * (m / (m + layer_k * dt * dt));
-                }
                 vs[j] += (gravity + f / m) * dt;
+                if let Some(bf) = body_force {
+                    let kick = bf[i] * (dt / (m + layer_k * dt * dt));
+                    if bf[i] == V3::zeros() {
+                        overlapping[j] = false;
+                    } else if overlapping[j] {
+                        let moving = contact_kick(kick, vs[j]);
+                        vs[j] += moving;
+                        shift[j] = (kick - moving) * dt;
+                    } else {
+                        vs[j] += kick;
+                    }
+                } else {
+                    overlapping[j] = false;
+                }
                 xs[j] += vs[j] * dt;
             }
         });
+}
+
+/// Fastest a body–body or collider contact may push apart a node that has been in contact
+/// since the start (parts that start a centimetre apart, inside each other's layers, or
+/// overlapping), m/s, beyond stopping it; the rest of its push moves the node's body as a
+/// whole without giving it velocity (`shift_bodies`). The layer's stored push would otherwise
+/// throw such parts apart at `depth / Δt`. Contacts that begin later push freely: their
+/// depth came from motion, and the push back is the bounce.
+pub const MAX_SEPARATION_SPEED: f64 = 0.1;
+
+/// The velocity change `kick` a body contact gives a node moving at `v`, limited so that the
+/// node's speed along it does not exceed [`MAX_SEPARATION_SPEED`] (a node moving into the
+/// contact is still stopped).
+fn contact_kick(kick: V3, v: V3) -> V3 {
+    let size = kick.norm();
+    if !(size > 0.0) {
+        return V3::zeros();
+    }
+    let along = v.dot(&kick) / size;
+    let allowed = (MAX_SEPARATION_SPEED - along).max(0.0);
+    kick * (size.min(allowed) / size)
+}
+
+/// Stage 1b: the part of the body contacts' push beyond [`MAX_SEPARATION_SPEED`] moves each
+/// body as a whole (its mass-weighted mean, on positions and the substep's start alike), so it
+/// separates bodies that start inside each other's layers without speeding them or stretching
+/// them (which would turn into speed).
+fn shift_bodies(world: &mut World, model: &mut Model) {
+    if !world.body_contact.active {
+        return;
+    }
+    let nodes = &mut world.nodes;
+    for body in &world.bodies {
+        let (mut moment, mut mass) = (V3::zeros(), 0.0);
+        for i in body.nodes.clone() {
+            moment += model.shift[i] * nodes.mass[i];
+            mass += nodes.mass[i];
+            model.shift[i] = V3::zeros();
+        }
+        if mass <= 0.0 || moment == V3::zeros() {
+            continue;
+        }
+        let shift = moment / mass;
+        for i in body.nodes.clone() {
+            if model.inv_mass[i] > 0.0 {
+                nodes.position[i] += shift;
+                model.previous[i] += shift;
+            }
+        }
+    }
 }
 
 /// Stage 2: nodes bound to paths go to their targets at `t`; exact ones stop moving in the
