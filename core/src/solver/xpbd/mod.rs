@@ -309,7 +309,7 @@ pub const MAX_SEPARATION_SPEED: f64 = 0.1;
 /// contact is still stopped).
 fn contact_kick(kick: V3, v: V3) -> V3 {
     let size = kick.norm();
-    if !(size > 0.0) {
+    if size.is_nan() || size <= 0.0 {
         return V3::zeros();
     }
     let along = v.dot(&kick) / size;
