@@ -25,7 +25,8 @@
 mod cells;
 mod contact;
 
-use super::body_contact::step_contacts_of;
+use super::body_contact::step_contacts;
+use super::contact_log::RigidScene;
 use super::deformation_damping::{rigid_motion_in, RigidScratch};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
@@ -79,6 +80,11 @@ pub(crate) struct Model {
     chunk_contact: Vec<(f64, V3)>,
     capsules: Vec<(Capsule, Capsule)>,
     rigid_scratch: RigidScratch,
+    /// Per display-surface point: the last constraint pass's (force, depth, force from the
+    /// capsules), for the contact log.
+    point_contact: Vec<(V3, f64, V3)>,
+    /// Whether a constraint pass has filled `point_contact` since the model was built.
+    logged_once: bool,
 }
 
 /// What one step reports to the world's frame totals.
@@ -143,6 +149,8 @@ impl Model {
             chunk_contact: vec![(0.0, V3::zeros()); n.div_ceil(PAR_CHUNK)],
             capsules: Vec::new(),
             rigid_scratch: RigidScratch::default(),
+            point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
+            logged_once: false,
         }
     }
 
@@ -221,7 +229,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     }
     let mut model = world.xpbd.take().unwrap_or_default();
     // The contact log and the body–body / collider layer forces, at the substep's start.
-    step_contacts_of(world, dt);
+    log_contacts(world, &model, dt);
     let time = world.time;
     predict(world, &mut model, dt);
     shift_bodies(world, &mut model);
@@ -244,6 +252,38 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     world.time += dt;
     world.xpbd = Some(model);
     out
+}
+
+/// Stage 0: the substep's contact log and the body–body / collider layer forces (at the
+/// substep's start). The rigid surfaces' contacts of the display-surface points come from the
+/// previous substep's constraint pass (`Model::point_contact`: only the points it found
+/// touching are looked at, and with a lone floor its constraint force is logged as it is).
+fn log_contacts(world: &mut World, model: &Model, dt: f64) {
+    let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
+    caps.clear();
+    caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
+    caps.extend(world.live_capsules.iter().copied());
+    let fresh = model.point_contact.len() == world.surface.len() && model.logged_once;
+    let scene = RigidScene {
+        layer: &world.settings.layer,
+        planes: &world.settings.planes,
+        capsules: &caps,
+        up: world.settings.up,
+        dt,
+        lead: 0.0,
+        points: fresh.then_some(&model.point_contact[..]),
+        node_blocks: None,
+    };
+    step_contacts(
+        &mut world.body_contact,
+        &mut world.contact_log,
+        &scene,
+        &world.surface,
+        &world.nodes,
+        &world.node_contact,
+        &world.bodies,
+    );
+    world.contact_log.capsules_scratch = caps;
 }
 
 /// Stage 1: external forces and the predicted positions.
@@ -491,7 +531,9 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     }
     let surface = &world.surface;
     let x = &mut world.nodes.position;
+    model.logged_once = true;
     for i in 0..surface.len() {
+        model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
         let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
         if surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]) {
             continue;
@@ -513,6 +555,11 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         out.touched = true;
         out.max_depth = out.max_depth.max(c.depth);
         out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
+        model.point_contact[i] = (
+            c.correction * (inv_dt2 / denominator),
+            c.depth,
+            c.from_capsules * (inv_dt2 / denominator),
+        );
         for k in 0..8 {
             let n = ids[k] as usize;
             x[n] += c.correction * (weights[k] * w[n] / denominator);
