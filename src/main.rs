@@ -346,6 +346,18 @@ fn run_bake(loaded: &LoadedScene, report: Option<&Path>) -> Result<(), Failure> 
     if inverted > 0 {
         eprintln!("springbake: warning: up to {inverted} lattice cells inverted during the bake; try more cells, a softer impact or springs = \"both\"");
     }
+    let gains: Vec<_> = r
+        .frames
+        .iter()
+        .filter_map(|f| f.energy_gain.filter(|g| *g > 0.0).map(|g| (f.frame, g)))
+        .collect();
+    if let Some(&(frame, gain)) = gains.first() {
+        let worst = gains.iter().map(|g| g.1).fold(0.0, f64::max);
+        eprintln!(
+            "springbake: warning: the total energy rose beyond the work done on the bodies in {} frame(s), first at frame {frame} ({gain:.3} J, at most {worst:.3} J): the motion may not be physical (see energy_gain in --report); try more substeps or cells",
+            gains.len()
+        );
+    }
     Ok(())
 }
 

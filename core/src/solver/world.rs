@@ -157,6 +157,9 @@ pub struct World {
     pub(crate) rest: Vec<Vector3<f64>>,
     /// The XPBD solver's derived model and buffers, built at its first step.
     pub(crate) xpbd: Option<super::xpbd::Model>,
+    /// The most total energy the bodies have had at the start of a frame, plus the
+    /// manipulators' work since (see [`FrameDiagnostics::energy_gain`]), J.
+    energy_budget: Option<f64>,
     prepared: Option<Prepared>,
     /// Buffers of the step's constraint, rigid-body and volume passes, reused.
     scratch: StepScratch,
@@ -345,6 +348,8 @@ struct FrameAccumulator {
     newmark_iterations: u32,
     newmark_max_iterations: u32,
     newmark_cap_hits: u32,
+    /// Work of the manipulators on the bodies, J (XPBD steps).
+    manipulator_work: f64,
 }
 
 impl World {
@@ -368,6 +373,7 @@ impl World {
             body_contact: BodyContact::default(),
             rest: Vec::new(),
             xpbd: None,
+            energy_budget: None,
             prepared: None,
             scratch: StepScratch::default(),
         }
@@ -753,6 +759,7 @@ impl World {
             }
             Integrator::Xpbd => {
                 let out = super::xpbd::step(self, dt);
+                acc.manipulator_work += out.capsule_work;
                 acc.max_depth = acc.max_depth.max(out.max_depth);
                 acc.steps += 1;
                 if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
@@ -1205,6 +1212,7 @@ impl World {
     ) -> Result<FrameDiagnostics, SimulationError> {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
+        let before = self.diagnostics(frame);
         self.contact_log.begin_frame();
         on_worker(self.nodes.len(), || {
             for _ in 0..choice.substeps {
@@ -1228,6 +1236,19 @@ impl World {
         if acc.steps > 0 {
             diag.manipulator_reaction = (acc.reaction_sum / acc.steps as f64).into();
         }
+        diag.manipulator_work = acc.manipulator_work;
+        let manipulated = !self.manipulators.is_empty() || !self.live_capsules.is_empty();
+        let balanced = self.settings.wind.is_none()
+            && (self.settings.integrator == Integrator::Xpbd || !manipulated);
+        let total = before.kinetic_energy + before.elastic_energy + before.gravity_energy;
+        let budget = self.energy_budget.map_or(total, |b| b.max(total)) + acc.manipulator_work;
+        self.energy_budget = Some(budget);
+        let mass: f64 = self.nodes.mass.iter().sum();
+        let slack = 0.5 * mass * super::xpbd::MAX_SEPARATION_SPEED.powi(2)
+            + mass * self.settings.gravity.norm() * 1e-3
+            + 0.05 * (before.kinetic_energy + before.elastic_energy);
+        diag.energy_gain =
+            balanced.then(|| (diag.kinetic_energy + diag.gravity_energy - budget - slack).max(0.0));
         Ok(diag)
     }
 

@@ -32,6 +32,9 @@ pub(crate) struct PointContact {
     pub from_capsules: V3,
     /// Deepest penetration found, m.
     pub depth: f64,
+    /// The capsules' corrections dotted with their surfaces' motion over the substep, m²
+    /// (times the point's mass over Δt²: the capsules' work on it).
+    pub capsule_work: f64,
 }
 
 impl Surfaces<'_> {
@@ -84,6 +87,7 @@ impl Surfaces<'_> {
                 let fixed = moved - friction(slip, cap.friction * depth);
                 out.correction += fixed - p;
                 out.from_capsules += fixed - p;
+                out.capsule_work += (fixed - p).dot(&(surface_now - surface_then));
                 out.depth = out.depth.max(depth);
                 p = fixed;
             }

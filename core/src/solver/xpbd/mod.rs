@@ -76,8 +76,9 @@ pub(crate) struct Model {
     inv_mass: Vec<f64>,
     /// Per node: moved by a rigid contact this substep.
     moved: Vec<bool>,
-    /// Per fixed node chunk: deepest penetration and the capsules' force on the nodes.
-    chunk_contact: Vec<(f64, V3)>,
+    /// Per fixed node chunk: deepest penetration, the capsules' force on the nodes and their
+    /// work.
+    chunk_contact: Vec<(f64, V3, f64)>,
     capsules: Vec<(Capsule, Capsule)>,
     rigid_scratch: RigidScratch,
     /// Per display-surface point: the last constraint pass's (force, depth, force from the
@@ -95,6 +96,8 @@ pub(crate) struct StepOutput {
     pub capsule_force: V3,
     /// Whether any contact moved a node (see `Model::moved`).
     pub touched: bool,
+    /// Work of the capsules on the bodies in this step, J.
+    pub capsule_work: f64,
 }
 
 impl Model {
@@ -146,7 +149,7 @@ impl Model {
             overlapping: vec![true; n],
             inv_mass: vec![0.0; n],
             moved: vec![false; n],
-            chunk_contact: vec![(0.0, V3::zeros()); n.div_ceil(PAR_CHUNK)],
+            chunk_contact: vec![(0.0, V3::zeros(), 0.0); n.div_ceil(PAR_CHUNK)],
             capsules: Vec::new(),
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
@@ -508,6 +511,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         .for_each(|(chunk, ((xs, moved), sums))| {
             let mut deepest = 0.0f64;
             let mut force = V3::zeros();
+            let mut work = 0.0;
             for (j, (x, moved)) in xs.iter_mut().zip(moved.iter_mut()).enumerate() {
                 let i = chunk * PAR_CHUNK + j;
                 *moved = false;
@@ -520,14 +524,16 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
                     *moved = true;
                     deepest = deepest.max(c.depth);
                     force += c.from_capsules * (mass[i] * inv_dt2);
+                    work += c.capsule_work * (mass[i] * inv_dt2);
                 }
             }
-            *sums = (deepest, force);
+            *sums = (deepest, force, work);
         });
-    for &(deepest, force) in &model.chunk_contact {
+    for &(deepest, force, work) in &model.chunk_contact {
         out.touched |= deepest > 0.0;
         out.max_depth = out.max_depth.max(deepest);
         out.capsule_force += force;
+        out.capsule_work += work;
     }
     let surface = &world.surface;
     let x = &mut world.nodes.position;
@@ -555,6 +561,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         out.touched = true;
         out.max_depth = out.max_depth.max(c.depth);
         out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
+        out.capsule_work += c.capsule_work * (inv_dt2 / denominator);
         model.point_contact[i] = (
             c.correction * (inv_dt2 / denominator),
             c.depth,
