@@ -553,11 +553,12 @@ fn solve_barrier(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = corner_signs(c, inv_h);
     let f = [0, 1, 2].map(|k| (x[nb[k]] - x[c]) * s[k]);
-    let cof = [f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])];
-    let j = f[0].dot(&cof[0]);
+    let first = f[1].cross(&f[2]);
+    let j = f[0].dot(&first);
     if j >= COLLAPSE_J {
         return;
     }
+    let cof = [first, f[2].cross(&f[0]), f[0].cross(&f[1])];
     let g = [cof[0] * s[0], cof[1] * s[1], cof[2] * s[2]];
     let g_apex = -(g[0] + g[1] + g[2]);
     let denominator = w[c] * g_apex.norm_squared()
