@@ -212,7 +212,8 @@ fn live(integrator: Integrator) {
     for f in 0..frames {
         capsule.centre.y -= 0.001;
         w.live_capsules = vec![capsule];
-        w.advance_frame(1.0 / 30.0, 7 + f, &|| false).expect("finite");
+        w.advance_frame(1.0 / 30.0, 7 + f, &|| false)
+            .expect("finite");
     }
     let ms = t0.elapsed().as_secs_f64() * 1e3 / frames as f64;
     println!(
