@@ -35,6 +35,7 @@
 //! local copies of their eight nodes and written back in cell order, so any thread count gives
 //! the same bits.
 
+use super::lanes::{solve_cubes, Cubes, LANES};
 use crate::material::Material;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -218,8 +219,15 @@ impl CellSet {
                 c.min(MAX_COLOURS)
             })
             .collect();
+        // Within a colour, cube cells of one corner parity side by side (then the others,
+        // then tets): four consecutive cubes of one parity are solved as one lane group.
+        let kind = |shape: &Shape| match shape {
+            Shape::Cube { odd: false, .. } => 0,
+            Shape::Cube { odd: true, .. } => 1,
+            Shape::Tet { .. } => 2,
+        };
         let mut order: Vec<usize> = (0..self.nodes.len()).collect();
-        order.sort_by_key(|&i| colour[i]);
+        order.sort_by_key(|&i| (colour[i], kind(&self.shape[i])));
         let nodes = order.iter().map(|&i| self.nodes[i]).collect();
         let shape = order.iter().map(|&i| self.shape[i]).collect();
         let hydro = order.iter().map(|&i| self.hydro_alpha[i]).collect();
@@ -269,14 +277,50 @@ impl CellSet {
             let out = &mut self.out[..nodes.len()];
             {
                 let xs: &[V3] = x;
-                out.par_iter_mut()
-                    .with_min_len(128)
+                let solve_one = |j: usize, local: &mut [V3; 8]| {
+                    *local = nodes[j].map(|n| xs[n as usize]);
+                    let wl = nodes[j].map(|n| w[n as usize]);
+                    let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
+                    solve_cell(local, &wl, shape[j], alphas, &axis[j]);
+                };
+                // A group takes a few microseconds: hand out at least 256 of them at a time
+                // (smaller colours stay on one thread; waking the other costs more).
+                out.par_chunks_mut(LANES)
+                    .with_min_len(256)
                     .enumerate()
-                    .for_each(|(j, local)| {
-                        *local = nodes[j].map(|n| xs[n as usize]);
-                        let wl = nodes[j].map(|n| w[n as usize]);
-                        let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                        solve_cell(local, &wl, shape[j], alphas, &axis[j]);
+                    .for_each(|(group, locals)| {
+                        let first = group * LANES;
+                        let parity = |j: usize| match shape[j] {
+                            Shape::Cube { odd, .. } => Some(odd),
+                            Shape::Tet { .. } => None,
+                        };
+                        let odd = parity(first);
+                        let lanes = locals.len() == LANES
+                            && odd.is_some()
+                            && (first..first + LANES).all(|j| parity(j) == odd);
+                        if !lanes {
+                            for (k, local) in locals.iter_mut().enumerate() {
+                                solve_one(first + k, local);
+                            }
+                            return;
+                        }
+                        let cell = |k: usize| first + k;
+                        for (k, local) in locals.iter_mut().enumerate() {
+                            *local = nodes[cell(k)].map(|n| xs[n as usize]);
+                        }
+                        let wl = std::array::from_fn(|k| nodes[cell(k)].map(|n| w[n as usize]));
+                        let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
+                            Shape::Cube { inv_h, .. } => inv_h,
+                            Shape::Tet { .. } => 0.0,
+                        });
+                        let cubes = Cubes {
+                            inv_h,
+                            hydro: std::array::from_fn(|k| hydro[cell(k)] * inv_dt2),
+                            dev: std::array::from_fn(|k| dev[cell(k)] * inv_dt2),
+                            axis_root: std::array::from_fn(|k| axis[cell(k)]),
+                            odd: odd == Some(true),
+                        };
+                        solve_cubes(locals, &wl, &cubes);
                     });
             }
             for (cell, local) in nodes.iter().zip(out.iter()) {
@@ -685,6 +729,48 @@ mod tests {
         let cell: [u32; 8] = std::array::from_fn(|c| c as u32);
         let v = crate::solver::volume::cell_volume(&cell, &x);
         assert!((v - 1e-3).abs() < 1e-5, "volume {v}");
+    }
+
+    /// Four deformed cube cells through the lane path and one by one through the scalar
+    /// path: the same bits (including a collapsing corner and an anisotropic cell).
+    #[test]
+    fn the_lane_path_gives_the_scalar_paths_bits() {
+        let jelly = Material::preset("jelly").unwrap();
+        let rest = unit_cube();
+        let mut cells: Vec<[V3; 8]> = Vec::new();
+        let mut rng = fastrand::Rng::with_seed(7);
+        for l in 0..LANES {
+            cells.push(
+                rest.map(|p| p + V3::new(rng.f64() - 0.5, rng.f64() - 0.5, rng.f64() - 0.5) * 0.04),
+            );
+            if l == 2 {
+                cells[l][7] = cells[l][0] + V3::new(0.01, 0.01, 0.01);
+            }
+        }
+        let (mu, lambda) = lame(&jelly);
+        let dt2 = 1.0 / (240.0f64 * 240.0);
+        let h = 0.1f64;
+        let hydro = 1.0 / (lambda * h * h * h) / dt2;
+        let dev = 1.0 / (2.0 * mu * h * h * h / 4.0) / dt2;
+        let axis = [[1.0; 3], [1.0; 3], [1.0, 2.0, 0.5], [1.0; 3]];
+        let w = [[50.0; 8], [40.0; 8], [30.0; 8], [20.0; 8]];
+        let mut scalar = cells.clone();
+        for (l, cell) in scalar.iter_mut().enumerate() {
+            let shape = Shape::Cube {
+                inv_h: 1.0 / h,
+                odd: true,
+            };
+            solve_cell(cell, &w[l], shape, (hydro, dev), &axis[l]);
+        }
+        let cubes = Cubes {
+            inv_h: [1.0 / h; LANES],
+            hydro: [hydro; LANES],
+            dev: [dev; LANES],
+            axis_root: axis,
+            odd: true,
+        };
+        solve_cubes(&mut cells, &w, &cubes);
+        assert_eq!(cells, scalar);
     }
 
     #[test]

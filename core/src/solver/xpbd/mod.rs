@@ -24,6 +24,7 @@
 
 mod cells;
 mod contact;
+mod lanes;
 
 use super::body_contact::step_contacts;
 use super::contact_log::RigidScene;
