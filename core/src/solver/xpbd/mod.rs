@@ -39,13 +39,15 @@ use rayon::prelude::*;
 
 type V3 = Vector3<f64>;
 
-/// Fewest substeps per output frame.
-pub const MIN_SUBSTEPS: u32 = 10;
-/// Most substeps per output frame chosen for the material's stiffness (a stiffer material
-/// is solved less exactly, not more slowly: the constraint sweep is what stays bounded).
-pub const MAX_STIFFNESS_SUBSTEPS: u32 = 30;
-/// Most substeps per output frame chosen for fast motion towards a surface.
-pub const MAX_SPEED_SUBSTEPS: u32 = 60;
+/// Fewest substeps per second of simulated time (10 a frame at 24 frames/s). The bounds
+/// are rates, not counts per output frame: a bake at 60 frames/s or the viewer's live mode
+/// at 30 resolves the physics as finely as a bake at 24, not more.
+pub const MIN_SUBSTEP_RATE: f64 = 240.0;
+/// Most substeps per second chosen for the material's stiffness (30 a frame at 24 frames/s; a
+/// stiffer material is solved less exactly, not more slowly: the sweep is what stays bounded).
+pub const MAX_STIFFNESS_SUBSTEP_RATE: f64 = 720.0;
+/// Most substeps per second chosen for fast motion towards a surface (60 a frame at 24).
+pub const MAX_SPEED_SUBSTEP_RATE: f64 = 1440.0;
 /// Substeps per elastic wave crossing of the shortest cell: the sweep's stiffness is within
 /// 10 % of the material's at 2 and 5 % at 4 (a column under its own weight).
 const SUBSTEPS_PER_WAVE_CROSSING: f64 = 3.0;
@@ -174,11 +176,12 @@ impl Model {
     }
 }
 
-/// Substeps for an output frame of `frame_dt` seconds (at least [`MIN_SUBSTEPS`]): enough
-/// for [`SUBSTEPS_PER_WAVE_CROSSING`] per crossing of the shortest cell by an elastic wave
-/// (`sqrt(E/ρ)`), at most [`MAX_STIFFNESS_SUBSTEPS`]; with any surface to touch, also
-/// enough that no node travels more than [`TRAVEL_PER_SUBSTEP`] of the shortest cell (a
-/// capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most [`MAX_SPEED_SUBSTEPS`].
+/// Substeps for an output frame of `frame_dt` seconds (at least [`MIN_SUBSTEP_RATE`] a
+/// second): enough for [`SUBSTEPS_PER_WAVE_CROSSING`] per crossing of the shortest cell by an
+/// elastic wave (`sqrt(E/ρ)`), at most [`MAX_STIFFNESS_SUBSTEP_RATE`]; with any surface to
+/// touch, also enough that no node travels more than [`TRAVEL_PER_SUBSTEP`] of the shortest
+/// cell (a capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most
+/// [`MAX_SPEED_SUBSTEP_RATE`]. Each count is rounded up to a whole substep.
 pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice {
     if world.xpbd.is_none() {
         world.xpbd = Some(Model::build(world));
@@ -186,13 +189,15 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
     let (h, speed) = world.xpbd.as_ref().map_or((f64::INFINITY, 0.0), |m| {
         (m.shortest_edge, m.cells.wave_speed)
     });
-    let mut n = MIN_SUBSTEPS as f64;
+    // Rates into counts for this frame (a hair under, so 240/s × 1/24 s is 10, not 11).
+    let count = |rate: f64| (rate * frame_dt * (1.0 - 1e-12)).ceil().max(1.0);
+    let mut n = count(MIN_SUBSTEP_RATE);
     let mut limited_by = "minimum";
     let sized = h.is_finite() && h > 0.0;
     if sized && speed > 0.0 {
         let by_wave = (SUBSTEPS_PER_WAVE_CROSSING * frame_dt * speed / h).ceil();
         if by_wave > n {
-            n = by_wave.min(MAX_STIFFNESS_SUBSTEPS as f64);
+            n = by_wave.min(count(MAX_STIFFNESS_SUBSTEP_RATE).max(n));
             limited_by = if by_wave > n {
                 "stiffness cap"
             } else {
@@ -215,7 +220,7 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
             .max(capsule_speed * frame_dt / (CAPSULE_TRAVEL_PER_SUBSTEP * h))
             .ceil();
         if by_speed > n {
-            n = by_speed.min(MAX_SPEED_SUBSTEPS as f64);
+            n = by_speed.min(count(MAX_SPEED_SUBSTEP_RATE).max(n));
             limited_by = if by_speed > n { "speed cap" } else { "speed" };
         }
     }
