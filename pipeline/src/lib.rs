@@ -16,6 +16,7 @@ mod frame;
 mod models;
 mod report;
 mod simulate;
+mod validate;
 pub mod watch;
 
 pub use frame::SimFrame;
@@ -131,10 +132,12 @@ pub fn load_scene(path: &Path) -> Result<LoadedScene, PipelineError> {
         path: path.to_path_buf(),
         message: e.message,
     })?;
-    validate_scene(&scene).map_err(|message| PipelineError::Scene {
-        path: path.to_path_buf(),
-        message,
-    })?;
+    validate_scene(&scene)
+        .and_then(|()| validate::floor(&scene))
+        .map_err(|message| PipelineError::Scene {
+            path: path.to_path_buf(),
+            message,
+        })?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     Ok(LoadedScene {
         scene,
@@ -197,6 +200,7 @@ pub fn validate_scene(scene: &SceneFile) -> Result<(), String> {
         }
     }
     events::validate(scene)?;
+    validate::numbers(scene)?;
     for (i, m) in scene.manipulator.iter().enumerate() {
         if !(m.radius > 0.0 && m.length >= 0.0) {
             return Err(format!(
