@@ -161,6 +161,23 @@ fn bad_input_is_a_typed_error() {
     }
 }
 
+/// Meshes whose triangles are points or lines (one vertex, coincident or collinear vertices)
+/// get a typed error, not a lattice without cells (whose embedding panicked).
+#[test]
+fn meshes_without_area_are_refused() {
+    let point = vec![Point3::origin(); 3];
+    let line: Vec<Point3<f64>> = (0..3).map(|i| Point3::new(i as f64, 0.0, 0.0)).collect();
+    for (name, positions) in [("point", point), ("line", line)] {
+        assert!(
+            matches!(
+                fit_lattice(&positions, &[[0, 1, 2]], &FitSettings::default()),
+                Err(FitError::Degenerate { .. })
+            ),
+            "{name}"
+        );
+    }
+}
+
 #[test]
 fn cell_size_resolution_in_metres() {
     let (p, t) = box_mesh([0.0; 3], [1.0, 0.5, 0.25]);

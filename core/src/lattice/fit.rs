@@ -63,6 +63,11 @@ pub enum FitError {
     #[error("resolution must be positive and finite, got {0}")]
     BadResolution(f64),
     #[error(
+        "the mesh covers no area: its triangles are points or lines (extent {extent:?} m), so \
+         no lattice cell holds it"
+    )]
+    Degenerate { extent: [f64; 3] },
+    #[error(
         "a {nx}×{ny}×{nz}-cell grid needs about {estimate_mib} MiB, over the {limit_mib} MiB limit; use fewer cells"
     )]
     TooLarge {
@@ -152,7 +157,13 @@ pub fn fit_lattice(
 
     let mut active = mark_surface_cells(&grid, positions, triangles);
     fill_interior(&grid, positions, triangles, &mut active);
-    Ok(build_lattice(&grid, &active, settings.layout))
+    let lattice = build_lattice(&grid, &active, settings.layout);
+    if lattice.cells.is_empty() {
+        return Err(FitError::Degenerate {
+            extent: [extent.x, extent.y, extent.z],
+        });
+    }
+    Ok(lattice)
 }
 
 fn too_large(dims: [u64; 3], settings: &FitSettings) -> FitError {
