@@ -6,46 +6,23 @@
 //! check; nothing here is asserted (the tests in `core/tests/xpbd.rs` are).
 //!
 //! `cargo run --release -p springbake-core --example solver_checks [-- [xpbd|euler|newmark]
-//! [--substeps N] [rebound fidelity spin column sweep ball tiny]]` (no check named: all)
+//! [--substeps N] [rebound fidelity spin column sweep ball tiny live]]` (no check named: all)
 
-use springbake_core::lattice::{
-    fit_lattice, surface_samples, FitSettings, Lattice, Resolution, SpringLayout,
-};
 use springbake_core::material::Material;
-use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::{box_mesh, uv_sphere};
 use springbake_core::solver::manipulator::ManipulatorKey;
-use springbake_core::solver::{Capsule, Integrator, ManipulatorTrack, Plane, World, WorldSettings};
+use springbake_core::solver::{Capsule, Integrator, ManipulatorTrack, World};
 use std::time::Instant;
 
 const FPS: f64 = 24.0;
 
-struct Body {
-    points: Vec<Point3<f64>>,
-    triangles: Vec<[u32; 3]>,
-    lattice: Lattice,
-}
-
-fn body(points: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>, cells: u32) -> Body {
-    let lattice = fit_lattice(
-        &points,
-        &triangles,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            layout: SpringLayout::Both,
-            ..FitSettings::default()
-        },
-    )
-    .expect("fits");
-    Body {
-        points,
-        triangles,
-        lattice,
-    }
-}
+#[path = "../tests/support/mod.rs"]
+mod support;
+use support::{mesh as body, product_world, Mesh as Body};
 
 /// A world with a floor at y = 0 (unless `floor` is false) holding `b` in `material`, set up as
-/// the product sets up a mesh (display-surface contact at half a cell).
+/// the product sets up a mesh, at `--substeps` when given.
 fn world(
     b: &Body,
     material: &Material,
@@ -53,24 +30,8 @@ fn world(
     velocity: Vector3<f64>,
     floor: bool,
 ) -> World {
-    let layer = WorldSettings::default_layer(b.lattice.cell_size, material, 0.4);
-    let mut w = World::new(WorldSettings {
-        planes: if floor {
-            vec![Plane {
-                normal: Vector3::y(),
-                offset: 0.0,
-            }]
-        } else {
-            Vec::new()
-        },
-        layer,
-        integrator,
-        ..WorldSettings::default()
-    });
+    let mut w = product_world(b, material, integrator, velocity, floor);
     w.settings.fixed_substeps = SUBSTEPS.with(|s| s.get());
-    let h = w.add_lattice_body("body", &b.lattice, material, velocity);
-    let (samples, areas) = surface_samples(&b.points, &b.triangles, 0.5 * b.lattice.cell_size);
-    w.add_contact_surface(h, &b.lattice, &samples, &areas);
     w
 }
 
@@ -99,7 +60,7 @@ fn frame(w: &mut World, f: usize) -> springbake_core::solver::FrameDiagnostics {
 /// after the first bounce.
 fn rebound(material: &Material, integrator: Integrator) {
     let (p, t) = uv_sphere([0.0, 1.1, 0.0], 0.1, 12, 24);
-    let b = body(p, t, 8);
+    let b = body((p, t), 8);
     let mut w = world(&b, material, integrator, Vector3::zeros(), true);
     let offset = lowest(&w) - 1.0;
     let (mut touched, mut peak, mut inverted) = (false, 0.0f64, 0);
@@ -193,7 +154,7 @@ fn main() {
 /// allows.
 fn live(integrator: Integrator) {
     let (p, t) = box_mesh([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
-    let b = body(p, t, 15);
+    let b = body((p, t), 15);
     let rubber = Material::preset("rubber").expect("preset");
     let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
     for f in 1..=6 {
@@ -231,7 +192,7 @@ thread_local! {
 /// every 4 frames, and the resting height after 4 s.
 fn fidelity(integrator: Integrator) {
     let (p, t) = box_mesh([0.0, 0.5, 0.0], [0.5, 1.0, 0.5]);
-    let b = body(p, t, 8);
+    let b = body((p, t), 8);
     let rubber = Material::preset("rubber").expect("preset");
     let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
     let mut line = String::new();
@@ -250,7 +211,7 @@ fn fidelity(integrator: Integrator) {
 /// A free rubber cube spinning at 1 rev/s about y (no gravity, no floor): spin kept after 1 s.
 fn spin(integrator: Integrator) {
     let (p, t) = box_mesh([-0.25, -0.25, -0.25], [0.25, 0.25, 0.25]);
-    let b = body(p, t, 8);
+    let b = body((p, t), 8);
     let rubber = Material::preset("rubber").expect("preset");
     let mut w = world(&b, &rubber, integrator, Vector3::zeros(), false);
     w.settings.gravity = Vector3::zeros();
@@ -278,7 +239,7 @@ fn spin(integrator: Integrator) {
 /// nodes pinned: top sag after settling against ρ g h² / (2E).
 fn column(integrator: Integrator) {
     let (p, t) = box_mesh([0.0, 0.0, 0.0], [0.2, 1.0, 0.2]);
-    let b = body(p, t, 10);
+    let b = body((p, t), 10);
     let m = Material::new("column", 1.0e6, 0.0, 1000.0, 0.5).expect("material");
     let mut w = world(&b, &m, integrator, Vector3::zeros(), true);
     let base: Vec<usize> = (0..w.nodes.len())
@@ -301,7 +262,7 @@ fn column(integrator: Integrator) {
 /// A 30 cm jelly block (8 cells) on the floor swept broadside by a 4 cm capsule at `speed`.
 fn jelly_sweep(integrator: Integrator, speed: f64) {
     let (p, t) = box_mesh([-0.15, 0.0, -0.15], [0.15, 0.3, 0.15]);
-    let b = body(p, t, 8);
+    let b = body((p, t), 8);
     let jelly = Material::preset("jelly").expect("preset");
     let mut w = world(&b, &jelly, integrator, Vector3::zeros(), true);
     w.manipulators.push(ManipulatorTrack {
@@ -341,7 +302,7 @@ fn jelly_sweep(integrator: Integrator, speed: f64) {
 /// largest deviation of the lattice volume from rest over 48 frames.
 fn jelly_ball(integrator: Integrator) {
     let (p, t) = uv_sphere([0.0, 0.52, 0.0], 0.5, 16, 32);
-    let b = body(p, t, 8);
+    let b = body((p, t), 8);
     let jelly = Material::preset("jelly").expect("preset");
     let mut w = world(&b, &jelly, integrator, Vector3::new(0.0, -8.0, 0.0), true);
     let h = springbake_core::solver::BodyHandle(0);
@@ -364,7 +325,7 @@ fn jelly_ball(integrator: Integrator) {
 /// A 1 cm rubber cube dropped 1 cm: 72 frames' wall time and substeps.
 fn tiny_cube(integrator: Integrator) {
     let (p, t) = box_mesh([0.0, 0.01, 0.0], [0.01, 0.02, 0.01]);
-    let b = body(p, t, 10);
+    let b = body((p, t), 10);
     let rubber = Material::preset("rubber").expect("preset");
     let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
     let t0 = Instant::now();

@@ -6,52 +6,21 @@
 
 mod support;
 
-use springbake_core::lattice::{surface_samples, Lattice};
+use springbake_core::lattice::surface_samples;
 use springbake_core::material::Material;
-use springbake_core::nalgebra::{Point3, Vector3};
+use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::{box_mesh, uv_sphere};
 use springbake_core::solver::manipulator::ManipulatorKey;
 use springbake_core::solver::{
     BodyHandle, FrameDiagnostics, Integrator, ManipulatorTrack, Plane, World, WorldSettings,
 };
-use support::fit;
+use support::{mesh, product_world, Mesh};
 
 const FRAME: f64 = 1.0 / 24.0;
 
-struct Mesh {
-    points: Vec<Point3<f64>>,
-    triangles: Vec<[u32; 3]>,
-    lattice: Lattice,
-}
-
-fn mesh((points, triangles): (Vec<Point3<f64>>, Vec<[u32; 3]>), cells: u32) -> Mesh {
-    let lattice = fit(&points, &triangles, cells);
-    Mesh {
-        points,
-        triangles,
-        lattice,
-    }
-}
-
 /// An XPBD world holding `m` in `material` at `velocity`, with a floor at y = 0 when `floor`.
 fn world(m: &Mesh, material: &Material, velocity: Vector3<f64>, floor: bool) -> World {
-    let mut w = World::new(WorldSettings {
-        planes: if floor {
-            vec![Plane {
-                normal: Vector3::y(),
-                offset: 0.0,
-            }]
-        } else {
-            Vec::new()
-        },
-        layer: WorldSettings::default_layer(m.lattice.cell_size, material, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
-    let h = w.add_lattice_body("body", &m.lattice, material, velocity);
-    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-    w.add_contact_surface(h, &m.lattice, &samples, &areas);
-    w
+    product_world(m, material, Integrator::Xpbd, velocity, floor)
 }
 
 fn frame(w: &mut World, f: usize) -> FrameDiagnostics {

@@ -304,10 +304,16 @@ pub(crate) fn step_contacts(
     log.end_step(&body_velocity, &capsule_velocity);
 }
 
-/// [`step_contacts`] for a Newmark-β step (no surface contact pass of its own to share): the
-/// manipulators at the world's time go into a reused buffer; rigid surfaces are observed one
-/// step ahead (Newmark's contacts take predicted positions).
-pub(crate) fn step_contacts_of(world: &mut World, dt: f64) {
+/// [`step_contacts`] for the integrators without a surface contact pass of their own to share:
+/// the manipulators at the world's time go into a reused buffer; rigid surfaces are observed
+/// `lead` seconds ahead (Newmark's contacts take predicted positions: `dt`; XPBD's: 0), and
+/// only the display points `points` found touching, when given (XPBD's last constraint pass).
+pub(crate) fn step_contacts_of(
+    world: &mut World,
+    dt: f64,
+    lead: f64,
+    points: Option<&[super::contact_log::PointContact]>,
+) {
     let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
     caps.clear();
     caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
@@ -318,8 +324,8 @@ pub(crate) fn step_contacts_of(world: &mut World, dt: f64) {
         capsules: &caps,
         up: world.settings.up,
         dt,
-        lead: dt,
-        points: None,
+        lead,
+        points,
         node_blocks: None,
     };
     step_contacts(

@@ -169,11 +169,7 @@ pub(crate) fn node_contacts(
         let (d, dist) = capsule_offset(cap, &x);
         let depth = cap.radius - dist;
         if depth > 0.0 {
-            let n = if dist > 1e-12 {
-                d / dist
-            } else {
-                cap.fallback_normal()
-            };
+            let n = cap.normal(d, dist);
             let f = layer_force(layer, cap.friction, depth, n, v - cap.velocity, mass, dt);
             from_capsules += f;
             deepest = deepest.max(depth);

@@ -283,11 +283,7 @@ impl RigidScene<'_> {
             if dist >= cap.radius {
                 continue;
             }
-            let n = if dist > 1e-12 {
-                d / dist
-            } else {
-                cap.fallback_normal()
-            };
+            let n = cap.normal(d, dist);
             let one = std::slice::from_ref(cap);
             let (f, _, _) = node_contacts(layer, &[], one, x, v, mass, self.dt);
             log.add(body, ContactPartner::Manipulator(j), f, n);

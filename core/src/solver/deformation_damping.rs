@@ -118,6 +118,35 @@ pub fn rigid_motion_in(
     }
 }
 
+/// Pull every node of each body with a damping rate towards the body's rigid motion over
+/// `dt`: `v += (v_rigid(x) − v) · min(c Δt, 1)` (the fit serial in node order, so
+/// deterministic; momentum and angular momentum are kept exactly). Shared by every
+/// integrator.
+pub(crate) fn damp(
+    nodes: &mut NodeState,
+    bodies: &[super::BodyInfo],
+    dt: f64,
+    scratch: &mut RigidScratch,
+) {
+    for body in bodies.iter().filter(|b| b.deformation_damping > 0.0) {
+        let rigid = rigid_motion_in(nodes, body.nodes.clone(), scratch);
+        let pull = (body.deformation_damping * dt).min(1.0);
+        let (pos, vel) = (&nodes.position, &mut nodes.velocity);
+        let (vel, pos) = (&mut vel[body.nodes.clone()], &pos[body.nodes.clone()]);
+        let pull_node = |(v, x): (&mut Vector3<f64>, &Vector3<f64>)| {
+            *v += (rigid.velocity_at(x) - *v) * pull;
+        };
+        if vel.len() > 2 * PAR_CHUNK {
+            vel.par_iter_mut()
+                .with_min_len(PAR_CHUNK)
+                .zip(pos.par_iter())
+                .for_each(pull_node);
+        } else {
+            vel.iter_mut().zip(pos.iter()).for_each(pull_node);
+        }
+    }
+}
+
 /// The damping rate `c = 2 ζ ω₁` (1/s) for a lattice of longest side `longest_m`.
 pub fn damping_rate(damping_ratio: f64, young_pa: f64, density: f64, longest_m: f64) -> f64 {
     if longest_m <= 0.0 {

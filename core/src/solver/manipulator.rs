@@ -34,6 +34,16 @@ impl Capsule {
         self.centre + self.axis * t
     }
 
+    /// The outward normal at a point `offset` (length `dist`) from the nearest point of the
+    /// axis: the offset's direction, or [`Self::fallback_normal`] on the axis itself.
+    pub fn normal(&self, offset: Vector3<f64>, dist: f64) -> Vector3<f64> {
+        if dist > 1e-12 {
+            offset / dist
+        } else {
+            self.fallback_normal()
+        }
+    }
+
     /// A normal for a point exactly on the axis: any direction perpendicular to it.
     pub fn fallback_normal(&self) -> Vector3<f64> {
         let trial = if self.axis.x.abs() < 0.9 {

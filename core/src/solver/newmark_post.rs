@@ -8,7 +8,7 @@
 //! Nodes of path constraints keep the corrector's state, so they stay on their paths exactly.
 //! The accelerations kept for the next step are the forces' (an operator split).
 
-use super::deformation_damping::{rigid_motion_in, RigidScratch};
+use super::deformation_damping::RigidScratch;
 use super::forces::Adjacency;
 use super::miyazaki1996_velocity_dispersion::{
     disperse_with, DispersionMode, DispersionScratch, DispersionStats, SpringColouring,
@@ -45,15 +45,7 @@ pub(crate) fn after_corrector(world: &mut World, post: &mut PostState, dt: f64) 
             post.kept.push((i, nodes.position[i], nodes.velocity[i]));
         }
     }
-    for body in world.bodies.iter().filter(|b| b.deformation_damping > 0.0) {
-        let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut post.rigid);
-        let pull = (body.deformation_damping * dt).min(1.0);
-        for i in body.nodes.clone() {
-            let target = rigid.velocity_at(&nodes.position[i]);
-            let v = nodes.velocity[i];
-            nodes.velocity[i] = v + (target - v) * pull;
-        }
-    }
+    super::deformation_damping::damp(nodes, &world.bodies, dt, &mut post.rigid);
     let stats = if mode == DispersionMode::Off {
         DispersionStats::default()
     } else {

@@ -10,7 +10,7 @@ use super::contact::{
     CONTACT_BLOCK,
 };
 use super::contact_log::{ContactLog, ContactRecord, RigidScene};
-use super::deformation_damping::{rigid_motion_in, RigidScratch};
+use super::deformation_damping::RigidScratch;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
 use super::manipulator::{Capsule, ManipulatorTrack};
@@ -772,7 +772,7 @@ impl World {
                 tolerance,
                 max_iterations,
             } => {
-                super::body_contact::step_contacts_of(self, dt);
+                super::body_contact::step_contacts_of(self, dt, dt, None);
                 let out = super::newmark::step(self, dt, beta, tolerance, max_iterations);
                 self.time += dt;
                 acc.max_depth = acc.max_depth.max(out.max_depth);
@@ -1113,25 +1113,8 @@ impl World {
             }
         }
 
-        // Deformation damping: pull every node towards its body's rigid motion (serial fit in
-        // node order, so deterministic; momentum and angular momentum are kept exactly).
-        for body in bodies.iter().filter(|b| b.deformation_damping > 0.0) {
-            let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut p.rigid_scratch);
-            let pull = (body.deformation_damping * dt).min(1.0);
-            let (pos, vel) = (&nodes.position, &mut nodes.velocity);
-            let (vel, pos) = (&mut vel[body.nodes.clone()], &pos[body.nodes.clone()]);
-            let pull_node = |(v, x): (&mut Vector3<f64>, &Vector3<f64>)| {
-                *v += (rigid.velocity_at(x) - *v) * pull;
-            };
-            if vel.len() > 2 * PAR_CHUNK {
-                vel.par_iter_mut()
-                    .with_min_len(PAR_CHUNK)
-                    .zip(pos.par_iter())
-                    .for_each(pull_node);
-            } else {
-                vel.iter_mut().zip(pos.iter()).for_each(pull_node);
-            }
-        }
+        // Deformation damping: pull every node towards its body's rigid motion.
+        super::deformation_damping::damp(nodes, bodies, dt, &mut p.rigid_scratch);
 
         // Velocity dispersion (§3.4 step 2–3).
         let hints = hinted.then(|| {

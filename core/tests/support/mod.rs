@@ -1,13 +1,16 @@
 //! Set-up shared by core's integration tests: a closed mesh fitted with a lattice at the
-//! default fit settings (`fit`, `fitted_box`), and world settings with a floor at y = 0 under
-//! the default contact layer (`floor_settings`). Each test file includes it with
+//! default fit settings (`fit`, `fitted_box`), world settings with a floor at y = 0 under
+//! the default contact layer (`floor_settings`), and a body set up as the product sets up a
+//! mesh (`mesh`, `product_world`; also used by `examples/solver_checks.rs`). Each test file includes it with
 //! `mod support;`; it holds set-up only, no assertions.
 
-use springbake_core::lattice::{fit_lattice, FitSettings, Lattice, Resolution};
+use springbake_core::lattice::{
+    fit_lattice, surface_samples, FitSettings, Lattice, Resolution, SpringLayout,
+};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{Plane, WorldSettings};
+use springbake_core::solver::{Integrator, Plane, World, WorldSettings};
 
 /// The lattice of the closed mesh (`points`, `triangles`) with `cells` cells along its
 /// longest side, the other fit settings at their defaults.
@@ -20,7 +23,7 @@ pub fn fit(points: &[Point3<f64>], triangles: &[[u32; 3]], cells: u32) -> Lattic
             ..FitSettings::default()
         },
     )
-    .unwrap()
+    .expect("the test mesh fits")
 }
 
 /// The axis-aligned box from `lo` to `hi` (`box_mesh`) and its lattice of `cells` cells along
@@ -49,4 +52,63 @@ pub fn floor_settings(lattice: &Lattice, material: &Material, friction: f64) -> 
         layer: WorldSettings::default_layer(lattice.cell_size, material, friction),
         ..WorldSettings::default()
     }
+}
+
+/// A closed mesh and its lattice as `springbake bake` fits one (the scene default spring
+/// layout, `cells` along the longest side).
+#[allow(dead_code)] // not every test file builds product worlds
+pub struct Mesh {
+    pub points: Vec<Point3<f64>>,
+    pub triangles: Vec<[u32; 3]>,
+    pub lattice: Lattice,
+}
+
+/// [`Mesh`] of `(points, triangles)` (e.g. from `box_mesh` or `uv_sphere`).
+#[allow(dead_code)]
+pub fn mesh((points, triangles): (Vec<Point3<f64>>, Vec<[u32; 3]>), cells: u32) -> Mesh {
+    let lattice = fit_lattice(
+        &points,
+        &triangles,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(cells),
+            layout: SpringLayout::Both,
+            ..FitSettings::default()
+        },
+    )
+    .expect("the test mesh fits");
+    Mesh {
+        points,
+        triangles,
+        lattice,
+    }
+}
+
+/// A world holding `m` in `material` at `velocity` as the product sets up a mesh (contact on
+/// the display surface sampled at half a cell, the default layer with friction 0.4), stepped
+/// by `integrator`, with a floor at y = 0 when `floor`.
+#[allow(dead_code)]
+pub fn product_world(
+    m: &Mesh,
+    material: &Material,
+    integrator: Integrator,
+    velocity: Vector3<f64>,
+    floor: bool,
+) -> World {
+    let mut w = World::new(WorldSettings {
+        planes: if floor {
+            vec![Plane {
+                normal: Vector3::y(),
+                offset: 0.0,
+            }]
+        } else {
+            Vec::new()
+        },
+        layer: WorldSettings::default_layer(m.lattice.cell_size, material, 0.4),
+        integrator,
+        ..WorldSettings::default()
+    });
+    let h = w.add_lattice_body("body", &m.lattice, material, velocity);
+    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+    w.add_contact_surface(h, &m.lattice, &samples, &areas);
+    w
 }

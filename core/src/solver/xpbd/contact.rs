@@ -72,11 +72,7 @@ impl Surfaces<'_> {
             let dist = offset.norm();
             let depth = cap.radius - dist;
             if depth > 0.0 {
-                let n = if dist > 1e-12 {
-                    offset / dist
-                } else {
-                    cap.fallback_normal()
-                };
+                let n = cap.normal(offset, dist);
                 let moved = p + n * depth;
                 // Where this surface point was at the substep's start (same axial parameter
                 // and offset in the capsule's frame: the capsule's translation and yaw).

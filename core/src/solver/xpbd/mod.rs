@@ -26,9 +26,8 @@ mod cells;
 mod contact;
 mod lanes;
 
-use super::body_contact::step_contacts;
-use super::contact_log::RigidScene;
-use super::deformation_damping::{rigid_motion_in, RigidScratch};
+use super::body_contact::step_contacts_of;
+use super::deformation_damping::RigidScratch;
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
@@ -268,31 +267,9 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
 /// previous substep's constraint pass (`Model::point_contact`: only the points it found
 /// touching are looked at, and with a lone floor its constraint force is logged as it is).
 fn log_contacts(world: &mut World, model: &Model, dt: f64) {
-    let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
-    caps.clear();
-    caps.extend(world.manipulators.iter().map(|m| m.capsule_at(world.time)));
-    caps.extend(world.live_capsules.iter().copied());
     let fresh = model.point_contact.len() == world.surface.len() && model.logged_once;
-    let scene = RigidScene {
-        layer: &world.settings.layer,
-        planes: &world.settings.planes,
-        capsules: &caps,
-        up: world.settings.up,
-        dt,
-        lead: 0.0,
-        points: fresh.then_some(&model.point_contact[..]),
-        node_blocks: None,
-    };
-    step_contacts(
-        &mut world.body_contact,
-        &mut world.contact_log,
-        &scene,
-        &world.surface,
-        &world.nodes,
-        &world.node_contact,
-        &world.bodies,
-    );
-    world.contact_log.capsules_scratch = caps;
+    let points = fresh.then_some(&model.point_contact[..]);
+    step_contacts_of(world, dt, 0.0, points);
 }
 
 /// Stage 1: external forces and the predicted positions.
@@ -604,15 +581,6 @@ fn update_velocities(world: &mut World, model: &Model, dt: f64) {
 
 /// Stage 5b: every node pulled towards its body's rigid motion (momentum kept exactly).
 fn damp_deformation(world: &mut World, model: &mut Model, dt: f64) {
-    for body in world.bodies.iter().filter(|b| b.deformation_damping > 0.0) {
-        let nodes = &mut world.nodes;
-        let rigid = rigid_motion_in(nodes, body.nodes.clone(), &mut model.rigid_scratch);
-        let pull = (body.deformation_damping * dt).min(1.0);
-        let range = body.nodes.clone();
-        let (pos, vel) = (&nodes.position[range.clone()], &mut nodes.velocity[range]);
-        vel.par_iter_mut()
-            .with_min_len(PAR_CHUNK)
-            .zip(pos.par_iter())
-            .for_each(|(v, x)| *v += (rigid.velocity_at(x) - *v) * pull);
-    }
+    let scratch = &mut model.rigid_scratch;
+    super::deformation_damping::damp(&mut world.nodes, &world.bodies, dt, scratch);
 }
