@@ -371,7 +371,8 @@ fn inspect(file: &Path, cells: u32, json: bool) -> Result<(), Failure> {
             registry.import_extensions().join(", ")
         ))
     })?;
-    let bytes = std::fs::read(file).map_err(|e| usage(format!("{}: {e}", file.display())))?;
+    let bytes = springbake_pipeline::source::read_source(file)
+        .map_err(|e| usage(format!("{}: {e}", file.display())))?;
     let scene = importer
         .import(file, &bytes, &Default::default())
         .map_err(|e| Failure::from(PipelineError::from(e)))?;

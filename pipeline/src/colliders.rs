@@ -68,8 +68,7 @@ pub(crate) fn wire(
                 registry.import_extensions().join(", ")
             ))
         })?;
-        let bytes =
-            std::fs::read(&path).map_err(|e| err(format!("cannot read the source file: {e}")))?;
+        let bytes = crate::source::read_source(&path).map_err(err)?;
         let source = importer.import(&path, &bytes, &ImportSettings::default())?;
         let sim_from_source = frame.sim_from_source(source.up_axis, source.meters_per_unit);
         let offset = Matrix4::new_translation(&Vector3::from(section.offset));

@@ -16,6 +16,7 @@ mod frame;
 mod models;
 mod report;
 mod simulate;
+pub mod source;
 mod validate;
 pub mod watch;
 

@@ -73,10 +73,10 @@ fn import_all(
                     registry.import_extensions().join(", ")
                 ),
             })?;
-        let bytes = std::fs::read(&path).map_err(|e| PipelineError::Body {
+        let bytes = crate::source::read_source(&path).map_err(|message| PipelineError::Body {
             body: i,
             source_path: path.clone(),
-            message: format!("cannot read the source file: {e}"),
+            message,
         })?;
         scenes.push(importer.import(&path, &bytes, &ImportSettings::default())?);
     }
