@@ -19,7 +19,7 @@ const FPS: f64 = 24.0;
 
 #[path = "../tests/support/mod.rs"]
 mod support;
-use support::{mesh as body, product_world, Mesh as Body};
+use support::{mesh as body, product_world, spin_kept, Mesh as Body};
 
 /// A world with a floor at y = 0 (unless `floor` is false) holding `b` in `material`, set up as
 /// the product sets up a mesh, at `--substeps` when given.
@@ -214,24 +214,9 @@ fn spin(integrator: Integrator) {
     let b = body((p, t), 8);
     let rubber = Material::preset("rubber").expect("preset");
     let mut w = world(&b, &rubber, integrator, Vector3::zeros(), false);
-    w.settings.gravity = Vector3::zeros();
-    let omega = 2.0 * std::f64::consts::PI;
-    for i in 0..w.nodes.len() {
-        let x = w.nodes.position[i];
-        w.nodes.velocity[i] = Vector3::y().cross(&x) * omega;
-    }
-    let spin_of = |w: &World| {
-        let r =
-            springbake_core::solver::deformation_damping::rigid_motion(&w.nodes, 0..w.nodes.len());
-        r.angular_velocity.y
-    };
-    let before = spin_of(&w);
-    for f in 1..=24 {
-        frame(&mut w, f);
-    }
     println!(
         "spin: free rubber cube keeps {:.1} % of 1 rev/s after 1 s",
-        100.0 * spin_of(&w) / before
+        100.0 * spin_kept(&mut w)
     );
 }
 

@@ -14,7 +14,7 @@ use springbake_core::solver::manipulator::ManipulatorKey;
 use springbake_core::solver::{
     BodyHandle, FrameDiagnostics, Integrator, ManipulatorTrack, Plane, World, WorldSettings,
 };
-use support::{mesh, product_world, Mesh};
+use support::{mesh, product_world, spin_kept, Mesh};
 
 const FRAME: f64 = 1.0 / 24.0;
 
@@ -114,21 +114,7 @@ fn a_free_spinning_rubber_cube_keeps_its_spin() {
         Vector3::zeros(),
         false,
     );
-    w.settings.gravity = Vector3::zeros();
-    let omega = 2.0 * std::f64::consts::PI;
-    for i in 0..w.nodes.len() {
-        w.nodes.velocity[i] = Vector3::y().cross(&w.nodes.position[i]) * omega;
-    }
-    let spin = |w: &World| {
-        let r =
-            springbake_core::solver::deformation_damping::rigid_motion(&w.nodes, 0..w.nodes.len());
-        r.angular_velocity.y
-    };
-    let before = spin(&w);
-    for f in 1..=24 {
-        frame(&mut w, f);
-    }
-    let kept = spin(&w) / before;
+    let kept = spin_kept(&mut w);
     assert!(kept >= 0.95, "kept {:.1} % of the spin", kept * 100.0);
 }
 

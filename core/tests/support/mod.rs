@@ -112,3 +112,26 @@ pub fn product_world(
     w.add_contact_surface(h, &m.lattice, &samples, &areas);
     w
 }
+
+/// Spin `w` (no gravity) at 1 rev/s about y through the origin, step it 1 s in 24 frames and
+/// return the share of its angular velocity (about its centre of mass) it kept.
+#[allow(dead_code)]
+pub fn spin_kept(w: &mut World) -> f64 {
+    w.settings.gravity = Vector3::zeros();
+    let omega = 2.0 * std::f64::consts::PI;
+    for i in 0..w.nodes.len() {
+        w.nodes.velocity[i] = Vector3::y().cross(&w.nodes.position[i]) * omega;
+    }
+    let spin = |w: &World| {
+        let all = 0..w.nodes.len();
+        springbake_core::solver::deformation_damping::rigid_motion(&w.nodes, all)
+            .angular_velocity
+            .y
+    };
+    let before = spin(w);
+    for f in 1..=24 {
+        w.advance_frame(1.0 / 24.0, f, &|| false)
+            .expect("a spinning cube stays finite");
+    }
+    spin(w) / before
+}
