@@ -850,7 +850,7 @@ impl World {
     ) -> Result<FrameDiagnostics, SimulationError> {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
-        let before = self.diagnostics(frame);
+        let (kinetic, elastic, gravity) = self.energies();
         self.contact_log.begin_frame();
         on_worker(self.parallel_size(), || {
             for _ in 0..choice.substeps {
@@ -878,13 +878,13 @@ impl World {
         let manipulated = !self.manipulators.is_empty() || !self.live_capsules.is_empty();
         let balanced = self.settings.wind.is_none()
             && (self.settings.integrator == Integrator::Xpbd || !manipulated);
-        let total = before.kinetic_energy + before.elastic_energy + before.gravity_energy;
+        let total = kinetic + elastic + gravity;
         let budget = self.energy_budget.map_or(total, |b| b.max(total)) + acc.manipulator_work;
         self.energy_budget = Some(budget);
         let mass: f64 = self.nodes.mass.iter().sum();
         let slack = 0.5 * mass * super::xpbd::MAX_SEPARATION_SPEED.powi(2)
             + mass * self.settings.gravity.norm() * 1e-3
-            + 0.05 * (before.kinetic_energy + before.elastic_energy);
+            + 0.05 * (kinetic + elastic);
         diag.energy_gain =
             balanced.then(|| (diag.kinetic_energy + diag.gravity_energy - budget - slack).max(0.0));
         Ok(diag)
@@ -892,24 +892,32 @@ impl World {
 
     /// State diagnostics at the current time (energies, inverted cells, speed).
     pub fn diagnostics(&self, frame: usize) -> FrameDiagnostics {
-        let n = &self.nodes;
-        let s = &self.springs;
-        let g = self.settings.gravity;
+        let (kinetic_energy, elastic_energy, gravity_energy) = self.energies();
         FrameDiagnostics {
             frame,
             time: self.time,
-            kinetic_energy: deterministic_sum(n.len(), |i| {
-                0.5 * n.mass[i] * n.velocity[i].norm_squared()
-            }),
-            elastic_energy: match (&self.settings.integrator, &self.xpbd) {
-                (Integrator::Xpbd, Some(model)) => model.elastic_energy(self),
-                _ => deterministic_sum(s.len(), |i| spring_energy(n, s, i)),
-            },
-            gravity_energy: deterministic_sum(n.len(), |i| -n.mass[i] * g.dot(&n.position[i])),
+            kinetic_energy,
+            elastic_energy,
+            gravity_energy,
             inverted_cells: self.inverted_cells(),
             max_speed: self.max_speed(),
             ..FrameDiagnostics::default()
         }
+    }
+
+    /// Kinetic, elastic (the XPBD cells' or the springs') and gravity energy now, J.
+    fn energies(&self) -> (f64, f64, f64) {
+        let n = &self.nodes;
+        let s = &self.springs;
+        let g = self.settings.gravity;
+        (
+            deterministic_sum(n.len(), |i| 0.5 * n.mass[i] * n.velocity[i].norm_squared()),
+            match (&self.settings.integrator, &self.xpbd) {
+                (Integrator::Xpbd, Some(model)) => model.elastic_energy(self),
+                _ => deterministic_sum(s.len(), |i| spring_energy(n, s, i)),
+            },
+            deterministic_sum(n.len(), |i| -n.mass[i] * g.dot(&n.position[i])),
+        )
     }
 
     /// Cells of all bodies with a non-positive corner tetrahedron (the test of
