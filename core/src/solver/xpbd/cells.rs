@@ -99,7 +99,7 @@ pub(crate) struct CellSet {
     serial_colour: Option<usize>,
     /// Per cell of the widest colour: its nodes after the solve (scratch).
     out: Vec<[V3; 8]>,
-    /// Shortest rest edge of any cell, m.
+    /// Shortest rest edge of any cell, m (0 without cells).
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
     pub wave_speed: f64,
@@ -191,10 +191,12 @@ impl CellSet {
     }
 
     fn note_scale(&mut self, edge: f64, speed: f64) {
-        if self.nodes.len() == 1 {
-            self.shortest_edge = f64::INFINITY;
-        }
-        self.shortest_edge = self.shortest_edge.min(edge);
+        // 0 until the first cell (the derived default).
+        self.shortest_edge = if self.shortest_edge > 0.0 {
+            self.shortest_edge.min(edge)
+        } else {
+            edge
+        };
         self.wave_speed = self.wave_speed.max(speed);
     }
 
