@@ -57,6 +57,10 @@ enum Command {
         /// Write per-frame diagnostics (energies, inverted cells, penetration, substeps) as JSON.
         #[arg(long, value_name = "FILE.json")]
         report: Option<PathBuf>,
+        /// Refuse bakes estimated to need more memory than this (e.g. 512M, 4G); default: the
+        /// SPRINGBAKE_MAX_MEMORY environment variable, else 90 % of the memory available.
+        #[arg(long, value_name = "SIZE", value_parser = springbake_pipeline::budget::parse_size)]
+        max_memory: Option<u64>,
     },
     /// Bake the built-in demo (a soft ball dropped and hit by the manipulator); no files needed.
     Demo {
@@ -183,6 +187,7 @@ fn run(command: Command) -> Result<(), Failure> {
             cells,
             material,
             report,
+            max_memory,
         } => {
             let overrides = MeshOverrides {
                 output,
@@ -192,7 +197,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 material,
             };
             let loaded = load_input(&input, &overrides)?;
-            run_bake(&loaded, report.as_deref())
+            run_bake(&loaded, report.as_deref(), max_memory)
         }
         Command::Demo { output, report } => {
             let dir = tempfile::tempdir().map_err(|e| Failure {
@@ -203,7 +208,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 code: 1,
                 message: e,
             })?;
-            run_bake(&loaded, report.as_deref())
+            run_bake(&loaded, report.as_deref(), None)
         }
         Command::Inspect { file, cells, json } => inspect(&file, cells, json),
         Command::Plugins => {
@@ -284,7 +289,30 @@ fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene, Fa
     }
 }
 
-fn run_bake(loaded: &LoadedScene, report: Option<&Path>) -> Result<(), Failure> {
+/// Refuses a `--report` path that would replace the bake's output or an input, or that cannot
+/// be written, before any simulation.
+fn check_report_path(loaded: &LoadedScene, report: &Path) -> Result<(), Failure> {
+    use springbake_pipeline::outputs;
+    let output = loaded.output_path();
+    if outputs::same_file(report, &output) {
+        return Err(usage(format!(
+            "{}: the report would replace the bake's output; give --report another file",
+            report.display()
+        )));
+    }
+    outputs::refuse_overwriting_inputs(loaded, report)?;
+    outputs::check_writable(report, "report")?;
+    Ok(())
+}
+
+fn run_bake(
+    loaded: &LoadedScene,
+    report: Option<&Path>,
+    max_memory: Option<u64>,
+) -> Result<(), Failure> {
+    if let Some(path) = report {
+        check_report_path(loaded, path)?;
+    }
     let registry = default_registry();
     let total = loaded.scene.output.frames;
     let interactive = std::io::stderr().is_terminal();
@@ -313,6 +341,7 @@ fn run_bake(loaded: &LoadedScene, report: Option<&Path>) -> Result<(), Failure> 
     };
     let mut hooks = BakeHooks {
         cancelled: None,
+        max_memory,
         progress: Some(&mut progress),
     };
     let outcome = bake(&registry, loaded, &mut hooks);
@@ -325,10 +354,13 @@ fn run_bake(loaded: &LoadedScene, report: Option<&Path>) -> Result<(), Failure> 
             code: 1,
             message: e.to_string(),
         })?;
-        springbake_pipeline::write_outputs(&[springbake_core::plugin::OutputFile {
-            path: path.to_path_buf(),
-            bytes: json,
-        }])?;
+        springbake_pipeline::write_outputs(
+            &[springbake_core::plugin::OutputFile {
+                path: path.to_path_buf(),
+                bytes: json,
+            }],
+            &loaded.inputs(),
+        )?;
     }
     let r = &outcome.report;
     let nodes: usize = r.bodies.iter().map(|b| b.nodes).sum();

@@ -134,7 +134,10 @@ fn scene_errors_name_the_file_line_and_valid_keys() {
 fn a_scene_file_bakes_to_point_caches() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("scene.toml");
-    let src = corpus("blender/two_objects.obj");
+    // Sources live in the scene's folder tree (issue 17): an absolute path inside it is fine.
+    let src = dir.path().join("assets/two_objects.obj");
+    std::fs::create_dir_all(src.parent().unwrap()).unwrap();
+    std::fs::copy(corpus("blender/two_objects.obj"), &src).unwrap();
     std::fs::write(
         &scene,
         format!("[output]\npath = \"out.pc2\"\nframes = 6\n[world]\nfloor = -2.0\n[[body]]\nsource = {:?}\ncells = 6\nmaterial = \"jelly\"\n", src.display().to_string()),

@@ -135,6 +135,10 @@ pub struct SourceDocument {
     pub path: PathBuf,
     /// Name of the importer that read it (`"gltf"`, `"obj"`, `"usd"`).
     pub importer: String,
+    /// The folder tree the source's dependencies had to lie in at import
+    /// ([`crate::plugin::ImportSettings::root`]); an exporter that re-reads the source (USD)
+    /// keeps to it. `None`: the source's own folder.
+    pub read_root: Option<PathBuf>,
 }
 
 /// Everything an importer hands over.

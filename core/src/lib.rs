@@ -10,6 +10,7 @@ pub mod bake;
 pub mod cage;
 pub mod collide;
 pub mod display;
+pub mod files;
 pub mod lattice;
 pub mod material;
 pub mod plugin;

@@ -59,6 +59,10 @@ impl PluginError {
 pub struct ImportSettings {
     /// OBJ: merge all `o`/`g` groups into one body instead of one body per object.
     pub merge_objects: bool,
+    /// The folder tree files the source pulls in (USD layers, references, payloads) must lie
+    /// in, symlinks resolved; `None` means the source's own folder. glTF buffers and images
+    /// are always read from the source's own folder or below.
+    pub root: Option<PathBuf>,
 }
 
 /// Reads a file into the display model.

@@ -738,6 +738,7 @@ mod tests {
             source: springbake_core::display::SourceDocument {
                 path: Path::new("x.obj").into(),
                 importer: "obj".into(),
+                read_root: None,
             },
         };
         let baked = BakedScene {

@@ -55,6 +55,7 @@ impl Importer for GltfImporter {
             source: SourceDocument {
                 path: path.to_path_buf(),
                 importer: "gltf".to_owned(),
+                read_root: None,
             },
         })
     }

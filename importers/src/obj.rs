@@ -67,6 +67,7 @@ impl Importer for ObjImporter {
             source: SourceDocument {
                 path: path.to_path_buf(),
                 importer: "obj".into(),
+                read_root: None,
             },
         })
     }

@@ -483,3 +483,44 @@ fn glb_written_by_hand_imports() {
     let q = s.meshes[1].world_positions()[1];
     assert_eq!([q.x, q.y, q.z], [1., 0., 5.]);
 }
+
+/// Issue 17, items 4 and 6: a buffer URI is read only inside the glTF file's folder after
+/// symlinks are resolved, must be a regular file (`""` and `.` name the folder itself), and
+/// every such refusal is the user's error (exit 2), with the JSON path.
+#[test]
+fn buffer_uris_that_leave_the_folder_through_links_or_name_folders_are_refused() {
+    let outer = tempfile::tempdir().unwrap();
+    let folder = outer.path().join("asset");
+    std::fs::create_dir_all(&folder).unwrap();
+    std::fs::write(outer.path().join("secret.bin"), [0u8; 36]).unwrap();
+    let gltf = |uri: &str| {
+        json!({
+            "asset": {"version": "2.0"},
+            "buffers": [{"uri": uri, "byteLength": 36}],
+        })
+        .to_string()
+    };
+    let mut uris = vec!["", ".", "./"];
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(outer.path().join("secret.bin"), folder.join("link.bin"))
+            .unwrap();
+        uris.push("link.bin");
+    }
+    for uri in uris {
+        let path = folder.join("m.gltf");
+        let text = gltf(uri);
+        std::fs::write(&path, &text).unwrap();
+        let err = GltfImporter
+            .import(&path, text.as_bytes(), &ImportSettings::default())
+            .expect_err(uri);
+        assert_eq!(err.kind, IoErrorKind::Invalid, "{uri}: {err}");
+        assert_eq!(err.location.as_deref(), Some("buffers[0].uri"), "{uri}");
+        let expected = if uri == "link.bin" {
+            "outside the folder"
+        } else {
+            "a directory"
+        };
+        assert!(err.message.contains(expected), "{uri}: {err}");
+    }
+}

@@ -19,6 +19,7 @@ fn import(text: &str) -> Result<ImportedScene, PluginError> {
 fn import_merged(text: &str) -> ImportedScene {
     let s = ImportSettings {
         merge_objects: true,
+        ..ImportSettings::default()
     };
     ObjImporter
         .import(Path::new("mem/test.obj"), text.as_bytes(), &s)

@@ -10,7 +10,7 @@ use crate::{LoadedScene, PipelineError};
 use springbake_core::collide::StaticCollider;
 use springbake_core::display::ImportedScene;
 use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
-use springbake_core::plugin::{ImportSettings, Registry};
+use springbake_core::plugin::Registry;
 use springbake_core::scene::ContactSpec;
 use springbake_core::solver::{ContactModel, World};
 
@@ -68,8 +68,8 @@ pub(crate) fn wire(
                 registry.import_extensions().join(", ")
             ))
         })?;
-        let bytes = crate::source::read_source(&path).map_err(err)?;
-        let source = importer.import(&path, &bytes, &ImportSettings::default())?;
+        let bytes = loaded.read_source(&path).map_err(err)?;
+        let source = importer.import(&path, &bytes, &loaded.import_settings())?;
         let sim_from_source = frame.sim_from_source(source.up_axis, source.meters_per_unit);
         let offset = Matrix4::new_translation(&Vector3::from(section.offset));
         let (mut points, mut triangles) = (Vec::new(), Vec::new());

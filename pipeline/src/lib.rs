@@ -6,17 +6,21 @@
 //!    the simulation frame (metres, the scene's up axis), fits a lattice and embeds the mesh;
 //! 3. [`Prepared::simulate`] steps the world frame by frame and records every vertex;
 //! 4. [`export`] hands the baked frames to the exporter for the output's extension, and
-//!    [`write_outputs`] writes the files atomically (temp file + rename).
+//!    [`write_outputs`] writes the files as one atomic set ([`outputs`]: an output that is an
+//!    input, or a folder that cannot be written, is refused before step 2).
 //!
 //! [`bake`] runs all four and returns the report (`--report` JSON).
 
+pub mod budget;
 mod colliders;
 pub mod events;
 mod frame;
 mod models;
+pub mod outputs;
 mod report;
 mod simulate;
-pub mod source;
+pub use outputs::write_outputs;
+pub use springbake_core::files as source;
 mod validate;
 pub mod watch;
 
@@ -25,7 +29,7 @@ pub use report::{BodyReport, Report, Seconds};
 pub use simulate::{prepare, Prepared, PreparedBody};
 
 use springbake_core::plugin::{
-    CacheKind, ExportSettings, IoErrorKind, OutputFile, PluginError, Registry,
+    CacheKind, ExportSettings, ImportSettings, IoErrorKind, OutputFile, PluginError, Registry,
 };
 use springbake_core::scene::{BodySection, CacheSpec, MaterialSpec, SceneFile};
 use springbake_core::solver::SimulationError;
@@ -97,6 +101,40 @@ impl LoadedScene {
     /// Absolute path of a body's source.
     pub fn source_path(&self, body: &BodySection) -> PathBuf {
         self.base_dir.join(&body.source)
+    }
+
+    /// The folder tree a bake may read from: the scene file's folder, or a bare mesh's own
+    /// folder. Sources, colliders and every file they pull in (glTF buffers, USD layers) must
+    /// resolve inside it, symlinks followed ([`source::contained`]).
+    pub fn read_root(&self) -> PathBuf {
+        if self.scene_path.is_some() {
+            return self.base_dir.clone();
+        }
+        self.scene
+            .body
+            .first()
+            .and_then(|b| self.source_path(b).parent().map(Path::to_path_buf))
+            .unwrap_or_default()
+    }
+
+    /// The bytes of a source named by the scene, read bounded and only inside
+    /// [`read_root`](Self::read_root); the message says why not.
+    pub fn read_source(&self, path: &Path) -> Result<Vec<u8>, String> {
+        source::read_contained(&self.read_root(), path).map_err(|e| {
+            if e.contains("outside the folder") && self.scene_path.is_some() {
+                format!("{e} (keep sources in the scene file's folder or below it)")
+            } else {
+                e
+            }
+        })
+    }
+
+    /// Import settings for this scene's sources: dependencies resolve inside the read root.
+    pub fn import_settings(&self) -> ImportSettings {
+        ImportSettings {
+            root: Some(self.read_root()),
+            ..ImportSettings::default()
+        }
     }
 
     /// The output file.
@@ -284,31 +322,13 @@ pub fn export(
     Ok(exporter.export(&prepared.export_scene, baked, &settings)?)
 }
 
-/// Write every file atomically: each goes to a temporary file beside it and is renamed over
-/// the target only when complete, so a reader never sees half a file and a failed bake leaves
-/// the previous output untouched.
-pub fn write_outputs(files: &[OutputFile]) -> Result<(), PipelineError> {
-    for f in files {
-        if let Some(dir) = f.path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| PipelineError::Io {
-                path: dir.to_path_buf(),
-                message: format!("cannot create the output folder: {e}"),
-            })?;
-        }
-        springbake_watcher::atomic::write_atomically(&f.path, &f.bytes).map_err(|e| {
-            PipelineError::Io {
-                path: f.path.clone(),
-                message: format!("cannot write the output: {e}"),
-            }
-        })?;
-    }
-    Ok(())
-}
-
-/// Hooks a host passes to a bake: cancellation (polled every frame) and progress.
+/// Hooks a host passes to a bake: cancellation (polled every frame), progress, and the
+/// memory limit of the run ([`budget::memory_limit`]).
 #[derive(Default)]
 pub struct BakeHooks<'a> {
     pub cancelled: Option<&'a (dyn Fn() -> bool + Sync)>,
+    /// `--max-memory`, bytes; `None` for the environment's or the machine's limit.
+    pub max_memory: Option<u64>,
     /// Called after each frame with (frames done, frames total).
     pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
 }
@@ -335,8 +355,17 @@ pub fn bake(
             registry.export_extensions().join(", ")
         )));
     }
+    outputs::refuse_overwriting_inputs(loaded, &output)?;
+    outputs::check_writable(&output, "output")?;
     let mut seconds = Seconds::default();
     let mut prepared = prepare(registry, loaded, &mut seconds)?;
+    budget::check_memory(
+        &prepared,
+        &loaded.scene,
+        &output,
+        budget::memory_limit(hooks.max_memory),
+    )?;
+    budget::check_substeps(&mut prepared, &loaded.scene)?;
     let t1 = Instant::now();
     let (baked, frames) = prepared.simulate(&loaded.scene, hooks)?;
     seconds.simulate = t1.elapsed().as_secs_f64();
@@ -348,7 +377,7 @@ pub fn bake(
         &output,
         loaded.scene.output.cache,
     )?;
-    write_outputs(&files)?;
+    write_outputs(&files, &loaded.inputs())?;
     seconds.export = t2.elapsed().as_secs_f64();
     Ok(BakeOutcome {
         report: Report {

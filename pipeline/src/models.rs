@@ -76,15 +76,23 @@ pub fn fit(
         ModelKind::Icosahedron => {
             Analysis::Cage(cage::primitive(Primitive::Icosahedron, points).map_err(cage_err)?)
         }
-        ModelKind::Plane => Analysis::Cage(
-            cage::plane(
-                points,
-                section
-                    .cells
-                    .unwrap_or(springbake_core::scene::DEFAULT_CELLS),
-            )
-            .map_err(cage_err)?,
-        ),
+        ModelKind::Plane => {
+            let cells = section
+                .cells
+                .unwrap_or(springbake_core::scene::DEFAULT_CELLS);
+            // At most 2 (cells + 1)² nodes (the second side is never the longer one); refused
+            // by the fit's memory guard before anything is allocated.
+            let nodes = 2 * (u64::from(cells) + 1).pow(2);
+            let bytes = nodes.saturating_mul(springbake_core::lattice::BYTES_PER_NODE);
+            if bytes > lattice_settings.memory_limit_bytes {
+                return Err(format!(
+                    "cells = {cells}: a plane of up to {nodes} nodes needs about {} MiB, over the {} MiB limit; use fewer cells",
+                    bytes >> 20,
+                    lattice_settings.memory_limit_bytes >> 20
+                ));
+            }
+            Analysis::Cage(cage::plane(points, cells).map_err(cage_err)?)
+        }
         ModelKind::Decimated => Analysis::Cage(
             cage::decimated(
                 points,

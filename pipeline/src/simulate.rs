@@ -8,7 +8,7 @@ use springbake_core::display::{ImportedScene, SourceDocument};
 use springbake_core::lattice::{Embedding, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
-use springbake_core::plugin::{ImportSettings, Registry};
+use springbake_core::plugin::Registry;
 use springbake_core::scene::{
     BodyKind, CacheSpec, IntegratorSpec, Interpolation as KeyInterpolation, PathInterpolation,
     SceneFile, DEFAULT_CELLS,
@@ -73,12 +73,14 @@ fn import_all(
                     registry.import_extensions().join(", ")
                 ),
             })?;
-        let bytes = crate::source::read_source(&path).map_err(|message| PipelineError::Body {
-            body: i,
-            source_path: path.clone(),
-            message,
-        })?;
-        scenes.push(importer.import(&path, &bytes, &ImportSettings::default())?);
+        let bytes = loaded
+            .read_source(&path)
+            .map_err(|message| PipelineError::Body {
+                body: i,
+                source_path: path.clone(),
+                message,
+            })?;
+        scenes.push(importer.import(&path, &bytes, &loaded.import_settings())?);
     }
     Ok(scenes)
 }
@@ -114,6 +116,7 @@ pub fn prepare(
             source: SourceDocument {
                 path: loaded.output_path(),
                 importer: "merged".into(),
+                read_root: None,
             },
         }
     };

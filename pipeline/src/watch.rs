@@ -46,7 +46,7 @@ impl WatchJob for BakeJob {
         let is_cancelled = || cancel.is_cancelled();
         let mut hooks = BakeHooks {
             cancelled: Some(&is_cancelled),
-            progress: None,
+            ..BakeHooks::default()
         };
         match bake(&self.registry, &loaded, &mut hooks) {
             Ok(outcome) => {

@@ -67,7 +67,7 @@ fn bake_mesh_diagnostics(
         );
     }
     let files = export(&registry, &prepared, &baked, out, cache).unwrap();
-    write_outputs(&files).unwrap();
+    write_outputs(&files, &[]).unwrap();
     (
         prepared,
         baked,

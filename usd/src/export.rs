@@ -278,7 +278,9 @@ impl UsdExporter {
         }
         if scene.source.importer == "usd" {
             let source = &scene.source.path;
-            let stage = read_stage(source)?;
+            let own_folder = source.parent().unwrap_or(Path::new("")).to_path_buf();
+            let root = scene.source.read_root.clone().unwrap_or(own_folder);
+            let stage = read_stage(source, &root)?;
             let mut prepared = Vec::new();
             for (bm, mesh) in &items {
                 let raw = stage

@@ -53,12 +53,25 @@ fn raw_mesh(m: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
     })
 }
 
-/// Open `path` with usd-core and read every mesh's raw arrays.
-pub fn read_stage(path: &Path) -> Result<RawStage, PluginError> {
+/// Open `path` with usd-core and read every mesh's raw arrays. Every layer the stage pulls in
+/// (subLayers, references, payloads, transitively) must resolve inside `root`, symlinks
+/// followed; the bridge checks each one before opening it.
+pub fn read_stage(path: &Path, root: &Path) -> Result<RawStage, PluginError> {
     with_bridge(path, |py, bridge| {
         let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, path);
+        let root = if root.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            root
+        };
         let result = bridge
-            .call_method1("read_stage", (path.to_string_lossy().into_owned(),))
+            .call_method1(
+                "read_stage",
+                (
+                    path.to_string_lossy().into_owned(),
+                    root.to_string_lossy().into_owned(),
+                ),
+            )
             .map_err(to_err)?;
         let up: String = result
             .get_item("up_axis")
@@ -117,9 +130,15 @@ pub struct UsdImporter;
 impl UsdImporter {
     /// usd-core opens files by path; when `path` is not a readable file (bytes handed over
     /// from memory), the bytes go to a temporary file with the same extension first.
-    fn import_from(&self, path: &Path, bytes: &[u8]) -> Result<ImportedScene, PluginError> {
+    fn import_from(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        root: Option<&Path>,
+    ) -> Result<ImportedScene, PluginError> {
         if path.is_file() {
-            return self.import_path(path, path);
+            let own_folder = path.parent().unwrap_or(Path::new(""));
+            return self.import_path(path, path, root.unwrap_or(own_folder));
         }
         if bytes.is_empty() {
             return Err(PluginError::new(
@@ -138,15 +157,21 @@ impl UsdImporter {
         let temp = dir.path().join(format!("input.{ext}"));
         std::fs::write(&temp, bytes)
             .map_err(|e| PluginError::new(IoErrorKind::Io, path, format!("temp file: {e}")))?;
-        self.import_path(&temp, path)
+        // Bytes from memory have no folder: they may pull in nothing.
+        self.import_path(&temp, path, dir.path())
     }
 
-    fn import_path(&self, open: &Path, report: &Path) -> Result<ImportedScene, PluginError> {
+    fn import_path(
+        &self,
+        open: &Path,
+        report: &Path,
+        root: &Path,
+    ) -> Result<ImportedScene, PluginError> {
         let retarget = |mut e: PluginError| {
             e.path = report.to_path_buf();
             e
         };
-        let stage = read_stage(open).map_err(retarget)?;
+        let stage = read_stage(open, root).map_err(retarget)?;
         if stage.meshes.is_empty() {
             return Err(PluginError::invalid(
                 report,
@@ -165,6 +190,7 @@ impl UsdImporter {
             source: SourceDocument {
                 path: PathBuf::from(report),
                 importer: "usd".into(),
+                read_root: Some(root.to_path_buf()),
             },
         })
     }
@@ -183,8 +209,8 @@ impl Importer for UsdImporter {
         &self,
         path: &Path,
         bytes: &[u8],
-        _settings: &ImportSettings,
+        settings: &ImportSettings,
     ) -> Result<ImportedScene, PluginError> {
-        self.import_from(path, bytes)
+        self.import_from(path, bytes, settings.root.as_deref())
     }
 }

@@ -2,7 +2,8 @@
 
 The Rust side (`springbake-usd`) calls exactly three functions here:
 
-* `read_stage(path)` -> dict: stage metadata and, per UsdGeomMesh, its raw arrays as
+* `read_stage(path, root)` -> dict: refuses a stage with a layer outside the folder `root`;
+  stage metadata and, per UsdGeomMesh, its raw arrays as
   little-endian byte strings (points, faceVertexCounts/Indices, normals, st, world matrix).
   Triangulation, primvar expansion and vertex splitting happen in Rust.
 * `write_source_stage(source_path, out_path, spec)`: flatten the source stage, author the baked
@@ -15,6 +16,7 @@ both sides), never one Python call per vertex.
 """
 
 import array
+import os
 import re
 
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
@@ -46,6 +48,59 @@ def _open(path):
     if stage is None:
         raise BridgeError("usd-core cannot open the stage")
     return stage
+
+
+def _inside(real, root_real):
+    return real == root_real or real.startswith(root_real.rstrip(os.sep) + os.sep)
+
+
+def _outside_error(what, real, root_real):
+    return BridgeError(
+        "%s resolves to %s, outside the folder %s: springbake reads only files inside it"
+        % (what, real, root_real)
+    )
+
+
+def _check_layer_tree(path, root):
+    """Refuse a stage whose layers (subLayers, references, payloads, at any depth) resolve
+    outside `root`, symlinks followed, before usd-core opens any of them. A dependency that does
+    not exist is left to the stage (usd-core warns and composes without it)."""
+    root_real = os.path.realpath(root)
+    pending = [path]
+    seen = set()
+    while pending:
+        identifier = pending.pop()
+        if identifier in seen:
+            continue
+        seen.add(identifier)
+        try:
+            layer = Sdf.Layer.FindOrOpen(identifier)
+        except Exception as e:  # pxr.Tf.ErrorException: a parse error, with file and line
+            raise BridgeError("usd-core cannot open the stage: " + _clean_tf_message(e))
+        if layer is None:
+            continue
+        for asset in layer.GetCompositionAssetDependencies():
+            resolved = layer.ComputeAbsolutePath(asset)
+            # A file inside a .usdz package is named "package.usdz[inner.usdc]".
+            outer = resolved.split("[", 1)[0]
+            real = os.path.realpath(outer)
+            if not _inside(real, root_real):
+                raise _outside_error(
+                    "the layer \"%s\" named in %s" % (asset, layer.identifier), real, root_real
+                )
+            if os.path.exists(real):
+                pending.append(resolved if "[" in resolved else real)
+
+
+def _check_used_layers(stage, root):
+    """After opening: every layer the stage actually used (value clips included) is inside."""
+    root_real = os.path.realpath(root)
+    for layer in stage.GetUsedLayers():
+        if layer.anonymous or not layer.realPath:
+            continue
+        real = os.path.realpath(layer.realPath.split("[", 1)[0])
+        if not _inside(real, root_real):
+            raise _outside_error("the layer \"%s\"" % layer.identifier, real, root_real)
 
 
 def _flat(values, kind):
@@ -88,8 +143,10 @@ def _primvar_data(primvar, time, location):
     return {"interpolation": str(primvar.GetInterpolation()), "values": _flat(values, "f")}
 
 
-def read_stage(path):
+def read_stage(path, root):
+    _check_layer_tree(path, root)
     stage = _open(path)
+    _check_used_layers(stage, root)
     time = Usd.TimeCode.Default()
     meshes = []
     for prim in stage.Traverse():

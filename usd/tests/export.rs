@@ -105,7 +105,7 @@ fn usd_source_round_trips_through_usd_core_as_usda_and_usdc() {
         } else {
             assert!(head.starts_with(b"PXR-USDC"), "{out_name}");
         }
-        let raw = springbake_usd::read_stage(&source).unwrap();
+        let raw = springbake_usd::read_stage(&source, source.parent().unwrap()).unwrap();
         let json = readback(&out);
         assert_eq!(json["up_axis"], "Z", "{out_name}");
         assert_eq!(json["meters_per_unit"], 1.0);
@@ -202,6 +202,7 @@ fn synthetic_gltf_scene() -> ImportedScene {
         source: SourceDocument {
             path: PathBuf::from("blob.glb"),
             importer: "gltf".into(),
+            read_root: None,
         },
     }
 }

@@ -82,7 +82,9 @@ fn cylinder_usdc_is_z_up_metres_with_24_gon_caps() {
     let p = &m.primitives[0];
     assert!(p.normals.is_some() && p.uvs.is_some());
     // Every display vertex sits where its source point is.
-    let stage = springbake_usd::read_stage(&corpus_dir().join("blender/cylinder.usdc")).unwrap();
+    let stage =
+        springbake_usd::read_stage(&corpus_dir().join("blender/cylinder.usdc"), &corpus_dir())
+            .unwrap();
     for (v, &src) in m.source_point_of_vertex.iter().enumerate() {
         let q = stage.meshes[0].points[src as usize];
         assert_eq!(p.positions[v], q.map(|c| c as f32));
@@ -239,4 +241,67 @@ fn unreadable_file_is_an_io_error_and_bytes_alone_still_import() {
         .unwrap();
     assert_eq!(scene.source.path, Path::new("memory/grid.usda"));
     assert!(scene.meshes[0].triangle_count() > 0);
+}
+
+/// A mesh layer with one triangle, for composition tests.
+const TRIANGLE_LAYER: &str = "#usda 1.0\n(\n    defaultPrim = \"Tri\"\n)\ndef Mesh \"Tri\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n";
+
+/// Issue 17, item 4: subLayers, references and payloads resolve only inside the folder the
+/// host allows (the scene's), symlinks followed; inside it they compose as before.
+#[test]
+fn layers_outside_the_allowed_folder_are_refused_before_they_are_read() {
+    let outer = tempfile::tempdir().unwrap();
+    let scene = outer.path().join("scene");
+    std::fs::create_dir_all(scene.join("assets")).unwrap();
+    std::fs::write(outer.path().join("outside.usda"), TRIANGLE_LAYER).unwrap();
+    std::fs::write(scene.join("assets/inside.usda"), TRIANGLE_LAYER).unwrap();
+    let arcs = [
+        ("subLayer", "(\n    subLayers = [@REF@]\n)\n"),
+        (
+            "reference",
+            "def \"A\" (\n    prepend references = @REF@\n)\n{\n}\n",
+        ),
+        (
+            "payload",
+            "def \"A\" (\n    prepend payload = @REF@\n)\n{\n}\n",
+        ),
+    ];
+    let settings = ImportSettings {
+        root: Some(scene.clone()),
+        ..ImportSettings::default()
+    };
+    let absolute = outer.path().join("outside.usda");
+    for (kind, arc) in arcs {
+        for target in [
+            "../../outside.usda",
+            absolute.to_str().unwrap(),
+            "./inside.usda",
+        ] {
+            let file = scene.join(format!("assets/{kind}.usda"));
+            let text = format!("#usda 1.0\n{}", arc.replace("REF", target));
+            std::fs::write(&file, &text).unwrap();
+            let result = UsdImporter.import(&file, text.as_bytes(), &settings);
+            if target.contains("inside") {
+                let scene = result.unwrap_or_else(|e| panic!("{kind} {target}: {e}"));
+                assert_eq!(scene.meshes.len(), 1, "{kind} {target}");
+            } else {
+                let err = result.expect_err(kind).to_string();
+                assert!(err.contains("outside the folder"), "{kind} {target}: {err}");
+            }
+        }
+    }
+    // A symlink inside the folder that points out is caught too.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(outer.path().join("outside.usda"), scene.join("link.usda"))
+            .unwrap();
+        let file = scene.join("linked.usda");
+        let text = "#usda 1.0\n(\n    subLayers = [@./link.usda@]\n)\n";
+        std::fs::write(&file, text).unwrap();
+        let err = UsdImporter
+            .import(&file, text.as_bytes(), &settings)
+            .expect_err("symlink out")
+            .to_string();
+        assert!(err.contains("outside the folder"), "{err}");
+    }
 }

@@ -1,6 +1,8 @@
 //! Atomic file replacement for hosts and jobs: [`write_atomically`] writes a temporary file in
 //! the target's folder, flushes it to disk and renames it over the target, so readers (and a
-//! watch loop whose bake fails half-way) only ever see the old file or the complete new one.
+//! watch loop whose bake fails half-way) only ever see the old file or the complete new one;
+//! [`write_set_atomically`] does the same for a set of files that belong together (`.gltf` and
+//! its `.bin`): every file is staged before any is renamed.
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
@@ -25,6 +27,66 @@ pub fn write_atomically_with(
     path: &Path,
     write: impl FnOnce(&mut File) -> io::Result<()>,
 ) -> io::Result<()> {
+    stage_with(path, write)?.commit()
+}
+
+/// Replaces several files so that a failure while writing (disk full, a folder that cannot be
+/// written) leaves every old file as it was: all contents go to flushed temporary files first,
+/// and only then are they renamed into place, the first file last. Put the file that refers to
+/// the others first (a `.gltf` before its `.bin`), so that it is the last to change. Between
+/// two renames (no data is written there) a crash can still leave a new `.bin` beside an old
+/// `.gltf`; the renames are the only step not covered.
+pub fn write_set_atomically(files: &[(&Path, &[u8])]) -> io::Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        staged.push(stage_with(path, |file| file.write_all(bytes))?);
+    }
+    if staged.is_empty() {
+        return Ok(());
+    }
+    // On an error, dropping what is left removes its temporary files.
+    let first = staged.remove(0);
+    for file in staged {
+        file.commit()?;
+    }
+    first.commit()
+}
+
+/// A complete, flushed temporary file waiting to be renamed over its target; dropped without
+/// [`commit`](Self::commit), it is removed and the target stays as it was.
+#[derive(Debug)]
+pub struct StagedFile {
+    temp: PathBuf,
+    target: PathBuf,
+    dir: PathBuf,
+    committed: bool,
+}
+
+impl StagedFile {
+    /// Renames the temporary file over the target and syncs the folder.
+    pub fn commit(mut self) -> io::Result<()> {
+        fs::rename(&self.temp, &self.target).map_err(|e| with_path(e, &self.target))?;
+        self.committed = true;
+        sync_dir(&self.dir);
+        Ok(())
+    }
+}
+
+impl Drop for StagedFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            // Best effort: the file may already be gone.
+            let _ = fs::remove_file(&self.temp);
+        }
+    }
+}
+
+/// Writes a temporary file beside `path` with `write`, keeping an existing target's
+/// permissions, flushed to disk; the target is not touched yet.
+pub fn stage_with(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> io::Result<()>,
+) -> io::Result<StagedFile> {
     let file_name = path.file_name().ok_or_else(|| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -35,7 +97,13 @@ pub fn write_atomically_with(
         Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let (temp_path, mut file) = create_temp(&dir, file_name).map_err(|e| with_path(e, &dir))?;
+    let (temp, mut file) = create_temp(&dir, file_name).map_err(|e| with_path(e, &dir))?;
+    let staged = StagedFile {
+        temp,
+        target: path.to_path_buf(),
+        dir,
+        committed: false,
+    };
     let result = (|| {
         if let Ok(meta) = fs::metadata(path) {
             // Keep the mode of the file we replace (e.g. group-readable outputs).
@@ -43,17 +111,10 @@ pub fn write_atomically_with(
         }
         write(&mut file)?;
         file.flush()?;
-        file.sync_all()?;
-        drop(file);
-        fs::rename(&temp_path, path)
+        file.sync_all()
     })();
-    if let Err(error) = result {
-        // The temp file may already be closed or renamed; removal is best effort.
-        let _ = fs::remove_file(&temp_path);
-        return Err(with_path(error, path));
-    }
-    sync_dir(&dir);
-    Ok(())
+    result.map_err(|e| with_path(e, path))?;
+    Ok(staged)
 }
 
 /// Adds the path to an I/O error's message, keeping its kind.
@@ -154,6 +215,30 @@ mod tests {
         assert!(target.is_dir());
         assert_eq!(fs::read(target.join("keep.txt")).unwrap(), b"inside");
         assert!(leftovers(dir.path(), &["out.usda"]).is_empty());
+    }
+
+    #[test]
+    fn a_set_is_written_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let gltf = dir.path().join("out.gltf");
+        let bin = dir.path().join("out.bin");
+        write_set_atomically(&[(&gltf, b"json 1"), (&bin, b"bin 1")]).unwrap();
+        assert_eq!(fs::read(&gltf).unwrap(), b"json 1");
+        assert_eq!(fs::read(&bin).unwrap(), b"bin 1");
+        // The second file cannot be staged (its target's folder does not exist): neither file
+        // changes and no temporary file is left.
+        let bad = dir.path().join("missing-folder").join("out.bin");
+        assert!(write_set_atomically(&[(&gltf, b"json 2"), (&bad, b"bin 2")]).is_err());
+        assert_eq!(fs::read(&gltf).unwrap(), b"json 1");
+        assert!(leftovers(dir.path(), &["out.gltf", "out.bin"]).is_empty());
+        // A rename that fails (a folder in the way of the second file) leaves the first file
+        // old: it is renamed last.
+        let blocked = dir.path().join("blocked.bin");
+        fs::create_dir(&blocked).unwrap();
+        fs::write(blocked.join("keep"), b"x").unwrap();
+        assert!(write_set_atomically(&[(&gltf, b"json 3"), (&blocked, b"bin 3")]).is_err());
+        assert_eq!(fs::read(&gltf).unwrap(), b"json 1");
+        assert!(leftovers(dir.path(), &["out.gltf", "out.bin", "blocked.bin"]).is_empty());
     }
 
     #[test]

@@ -15,7 +15,7 @@ mod job;
 mod watcher;
 mod watchset;
 
-pub use atomic::{write_atomically, write_atomically_with};
+pub use atomic::{write_atomically, write_atomically_with, write_set_atomically};
 pub use cancel::CancelToken;
 pub use event::WatchEvent;
 pub use job::{JobError, RunSummary, WatchJob};

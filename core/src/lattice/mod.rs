@@ -21,7 +21,7 @@ pub mod fit;
 pub mod surface;
 
 pub use embed::Embedding;
-pub use fit::{fit_lattice, FitError, FitSettings, Resolution, CORNERS};
+pub use fit::{fit_lattice, FitError, FitSettings, Resolution, BYTES_PER_NODE, CORNERS};
 pub use surface::surface_samples;
 
 use nalgebra::{Point3, Vector3};

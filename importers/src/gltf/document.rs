@@ -254,13 +254,11 @@ pub fn load_uri(base: &Path, uri: &str, location: &str) -> Result<Vec<u8>, Plugi
     }
     let file =
         resolve_relative_uri(base, uri).map_err(|m| PluginError::invalid(base, m).at(location))?;
-    std::fs::read(&file).map_err(|e| {
-        PluginError::new(
-            if e.kind() == std::io::ErrorKind::NotFound {
-                IoErrorKind::Invalid
-            } else {
-                IoErrorKind::Io
-            },
+    // Symlinks are resolved before the folder check (a link inside the folder may point out),
+    // and the read is bounded like a source's.
+    let folder = base.parent().unwrap_or(Path::new(""));
+    springbake_core::files::read_contained(folder, &file).map_err(|e| {
+        PluginError::invalid(
             base,
             format!("cannot read {} (from uri \"{uri}\"): {e}", file.display()),
         )

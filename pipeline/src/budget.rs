@@ -1,0 +1,190 @@
+//! A bake's budget (issue 17, item 2), checked after the models are built and before the first
+//! step: the memory the run will need against `--max-memory` (or what the machine has free),
+//! and the substeps per frame against a cap, each refused with what drives it and what to
+//! change (exit code 2) instead of an abort by the allocator or a run without end.
+//!
+//! The figures are measured, not guessed (peak resident memory of `springbake bake` on a cube
+//! at 40 and 60 cells and on an icosphere at 100 and 800 frames, this machine, 2026-12-01):
+//! per node, the world, its prepared solver and the fit, by integrator; per vertex and output
+//! frame, the recorded frame plus the exporter's buffers, by output format.
+
+use crate::simulate::Prepared;
+use crate::PipelineError;
+use springbake_core::scene::{IntegratorSpec, SceneFile};
+use std::path::Path;
+
+/// Bytes per simulated node at peak, measured and rounded up by about a fifth: XPBD 1.1 KB,
+/// symplectic Euler 1.6 KB, Newmark 2.2 KB (68 921 nodes).
+fn bytes_per_node(integrator: IntegratorSpec) -> u64 {
+    match integrator {
+        IntegratorSpec::Xpbd => 1400,
+        IntegratorSpec::SymplecticEuler => 2000,
+        IntegratorSpec::Newmark => 2700,
+    }
+}
+
+/// Bytes per display vertex and output frame at peak, by output format (measured: glTF 76,
+/// point caches 35, USD 112, plus usd-core's own 100 MB).
+fn bytes_per_vertex_frame(output: &Path) -> (u64, u64) {
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "pc2" | "mdd" => (40, 0),
+        "usda" | "usdc" | "usd" | "usdz" => (128, 160 << 20),
+        _ => (88, 0),
+    }
+}
+
+/// Memory every run needs besides the bake (the binary, its libraries, the imported scene).
+const BASE_BYTES: u64 = 64 << 20;
+
+/// Most substeps per output frame the automatic choice may ask for; beyond it a bake takes
+/// hours for what a user sees as a few seconds of motion.
+pub const MAX_AUTO_SUBSTEPS_PER_FRAME: u32 = 20_000;
+
+/// The memory limit of this run: `requested` (`--max-memory`), else `SPRINGBAKE_MAX_MEMORY`,
+/// else nine tenths of the memory the machine has available now (Linux `MemAvailable`), else
+/// 16 GiB.
+pub fn memory_limit(requested: Option<u64>) -> u64 {
+    requested
+        .or_else(|| {
+            std::env::var("SPRINGBAKE_MAX_MEMORY")
+                .ok()
+                .and_then(|v| parse_size(&v).ok())
+        })
+        .or_else(|| available_memory().map(|b| b / 10 * 9))
+        .unwrap_or(16 << 30)
+}
+
+/// `MemAvailable` from `/proc/meminfo`, bytes.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// A size such as `512M`, `4G`, `1.5GiB` or a plain number of bytes.
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("\"{text}\" is not a size (e.g. 512M, 4G)"))?;
+    let scale: f64 = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "k" | "kb" | "kib" => 1024.0,
+        "m" | "mb" | "mib" => 1024.0 * 1024.0,
+        "g" | "gb" | "gib" => 1024.0 * 1024.0 * 1024.0,
+        "t" | "tb" | "tib" => 1024.0_f64.powi(4),
+        other => {
+            return Err(format!(
+                "\"{text}\": unknown unit \"{other}\" (use K, M, G or T)"
+            ))
+        }
+    };
+    let bytes = value * scale;
+    if !(1.0..1.0e18).contains(&bytes) {
+        return Err(format!("\"{text}\" is not a usable size"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The bake's estimated peak memory, bytes, and a sentence naming what it is made of.
+pub fn estimate_memory(prepared: &Prepared, scene: &SceneFile, output: &Path) -> (u64, String) {
+    let nodes = prepared.world.nodes.len() as u64;
+    let vertices: u64 = prepared
+        .bodies
+        .iter()
+        .filter_map(|b| prepared.export_scene.meshes.get(b.mesh_index))
+        .map(|m| m.vertex_count() as u64)
+        .sum();
+    let frames = scene.output.frames as u64;
+    let (per_vertex_frame, exporter_base) = bytes_per_vertex_frame(output);
+    let world = nodes.saturating_mul(bytes_per_node(scene.solver.integrator));
+    let baked = vertices
+        .saturating_mul(frames)
+        .saturating_mul(per_vertex_frame);
+    let total = BASE_BYTES
+        .saturating_add(exporter_base)
+        .saturating_add(world)
+        .saturating_add(baked);
+    let what = format!(
+        "{nodes} nodes ({} MiB) and {frames} frames of {vertices} vertices ({} MiB)",
+        world >> 20,
+        baked >> 20
+    );
+    (total, what)
+}
+
+/// Refuses a bake whose estimated memory is over `limit` bytes.
+pub fn check_memory(
+    prepared: &Prepared,
+    scene: &SceneFile,
+    output: &Path,
+    limit: u64,
+) -> Result<(), PipelineError> {
+    let (need, what) = estimate_memory(prepared, scene, output);
+    if need <= limit {
+        return Ok(());
+    }
+    Err(PipelineError::Usage(format!(
+        "this bake needs about {} MiB ({what}), over the limit of {} MiB (--max-memory, \
+         SPRINGBAKE_MAX_MEMORY, or nine tenths of the memory available): use fewer cells, \
+         fewer frames, a point cache (.pc2) or raise the limit",
+        need >> 20,
+        limit >> 20
+    )))
+}
+
+/// Refuses a bake whose automatic substep count for the first frame is over
+/// [`MAX_AUTO_SUBSTEPS_PER_FRAME`], saying what drives it. A fixed `solver.substeps` is the
+/// user's explicit choice and is not capped here (its own range is checked at load).
+pub fn check_substeps(prepared: &mut Prepared, scene: &SceneFile) -> Result<(), PipelineError> {
+    let choice = prepared.world.choose_substeps(1.0 / scene.output.fps);
+    if choice.limited_by == "fixed" || choice.substeps <= MAX_AUTO_SUBSTEPS_PER_FRAME {
+        return Ok(());
+    }
+    let why = match choice.limited_by {
+        "stability" | "accuracy" => {
+            "the stiffest spring against the lightest node: a stiff material or small cells"
+        }
+        "contact" => "the contact layer's stiffness against the lightest node: small cells",
+        "speed" => "the fastest node against the shortest spring: a fast body or small cells",
+        other => other,
+    };
+    Err(PipelineError::Usage(format!(
+        "this bake needs {} substeps per frame, over the cap of {MAX_AUTO_SUBSTEPS_PER_FRAME}; \
+         they are driven by {why} (integrator \"{}\"). Use integrator = \"xpbd\" (the default), \
+         a softer material, fewer cells, or set solver.substeps yourself",
+        choice.substeps,
+        match scene.solver.integrator {
+            IntegratorSpec::Xpbd => "xpbd",
+            IntegratorSpec::SymplecticEuler => "symplectic_euler",
+            IntegratorSpec::Newmark => "newmark",
+        }
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_units() {
+        assert_eq!(parse_size("512").unwrap(), 512);
+        assert_eq!(parse_size("4K").unwrap(), 4096);
+        assert_eq!(parse_size("1.5G").unwrap(), 3 << 29);
+        assert_eq!(parse_size(" 2 GiB ").unwrap(), 2 << 30);
+        for bad in ["", "G", "-1G", "1Q", "0", "nan", "1e30"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+}
