@@ -275,6 +275,7 @@ fn primitive(doc: &GltfDocument, location: &str, prim: &Value) -> Result<Primiti
     let pos_loc = format!("{location}.attributes.POSITION");
     let pos_index = attr("POSITION")
         .ok_or_else(|| doc.error(&pos_loc, "primitive has no POSITION attribute"))?;
+    check_position_type(doc, pos_index)?;
     let positions = read_vec::<3>(doc, pos_index, &pos_loc)?;
     if let Some(bad) = positions
         .iter()
@@ -378,4 +379,29 @@ pub fn triangulate(mode: u64, idx: &[u32]) -> Result<Vec<u32>, String> {
         }
         _ => Err(format!("mode {mode} is not a triangle mode")),
     }
+}
+
+/// POSITION is FLOAT in core glTF; integer positions are only valid under
+/// `KHR_mesh_quantization` (which the accessor reader decodes, normalized or not).
+fn check_position_type(doc: &GltfDocument, index: usize) -> Result<(), PluginError> {
+    const FLOAT: u64 = 5126;
+    let component = doc
+        .get("accessors", index, "POSITION")?
+        .get("componentType")
+        .and_then(serde_json::Value::as_u64);
+    let quantized = doc
+        .array("extensionsUsed")
+        .iter()
+        .any(|e| e.as_str() == Some("KHR_mesh_quantization"));
+    if component == Some(FLOAT) || quantized {
+        return Ok(());
+    }
+    Err(doc.error(
+        format!("accessors[{index}].componentType"),
+        format!(
+            "POSITION must be FLOAT (5126), got {}; integer positions need the \
+             KHR_mesh_quantization extension",
+            component.map_or("nothing".to_owned(), |c| c.to_string())
+        ),
+    ))
 }

@@ -127,11 +127,21 @@ fn parse_coord(path: &Path, line: usize, token: &str, what: &str) -> Result<f64,
     let value: f64 = token
         .parse()
         .map_err(|_| err_at(path, line, format!("{what}: `{token}` is not a number")))?;
-    if !value.is_finite() || !(value as f32).is_finite() {
+    if !value.is_finite() {
         return Err(err_at(
             path,
             line,
             format!("{what}: `{token}` is not a finite number"),
+        ));
+    }
+    if !(value as f32).is_finite() {
+        return Err(err_at(
+            path,
+            line,
+            format!(
+                "{what}: `{token}` is beyond the range of the 32-bit floats meshes are stored in \
+                 (±3.4e38)"
+            ),
         ));
     }
     Ok(value)
@@ -238,6 +248,9 @@ impl ObjDocument {
     /// Parse OBJ text. Unknown keywords (`s`, `curv`, `vp`, …) are skipped; every malformed
     /// statement is an error naming its line.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<ObjDocument, PluginError> {
+        // A UTF-8 byte-order mark (Windows editors write one) is not part of the first line:
+        // kept, it hid the first `v` and shifted every index after it.
+        let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
         let text = String::from_utf8_lossy(bytes);
         let mut doc = ObjDocument::default();
         let stem = path

@@ -372,7 +372,10 @@ fn quantized_integer_positions_are_converted() {
                 "min": [-3,0,-2], "max": [7,100,0]}]),
         json!({"attributes": {"POSITION": 0}}),
     );
-    let s = import_bytes("i.gltf", &bytes).unwrap();
+    let mut v: Value = serde_json::from_slice(&bytes).unwrap();
+    v["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    v["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    let s = import_bytes("i.gltf", &serde_json::to_vec(&v).unwrap()).unwrap();
     assert_eq!(
         s.meshes[0].primitives[0].positions,
         vec![[-3., 0., 0.], [7., 0., 0.], [0., 100., -2.]]
@@ -523,4 +526,36 @@ fn buffer_uris_that_leave_the_folder_through_links_or_name_folders_are_refused()
         };
         assert!(err.message.contains(expected), "{uri}: {err}");
     }
+}
+
+/// Issue 17 silent misreads: integer POSITION without KHR_mesh_quantization, and buffer
+/// views that fit the bytes present but not the buffer's declared byteLength.
+#[test]
+fn integer_positions_and_views_past_the_declared_buffer_are_refused() {
+    let bytes: Vec<u8> = vec![0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0];
+    let u8_doc = doc(
+        &bytes,
+        json!([{"buffer": 0, "byteLength": 12, "byteStride": 4}]),
+        json!([{"bufferView": 0, "componentType": 5121, "count": 3, "type": "VEC3"}]),
+        json!({"attributes": {"POSITION": 0}}),
+    );
+    let err = import_bytes("u8.gltf", &u8_doc).unwrap_err();
+    assert_eq!(err.location.as_deref(), Some("accessors[0].componentType"));
+    assert!(err.message.contains("KHR_mesh_quantization"), "{err}");
+    // With the extension declared, the same file is valid (unnormalized integers).
+    let mut quantized: Value = serde_json::from_slice(&u8_doc).unwrap();
+    quantized["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    let scene = import_bytes("q.gltf", &serde_json::to_vec(&quantized).unwrap()).unwrap();
+    assert_eq!(scene.meshes[0].primitives[0].positions[2], [0.0, 1.0, 0.0]);
+
+    // byteLength says 40 bytes but the view wants the 48 that are there.
+    let mut short: Value =
+        serde_json::from_slice(&square_with_indices(4, &[0, 1, 2, 1, 3, 2], 5121, 6)).unwrap();
+    short["buffers"][0]["byteLength"] = json!(40);
+    let err = import_bytes("short.gltf", &serde_json::to_vec(&short).unwrap()).unwrap_err();
+    assert_eq!(err.location.as_deref(), Some("bufferViews[0]"), "{err}");
+    assert!(
+        err.message.contains("runs past buffers[0] (40 bytes)"),
+        "{err}"
+    );
 }

@@ -155,7 +155,7 @@ fn more_bad_lines_are_reported_with_their_line_numbers() {
         (
             "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n",
             "line 3",
-            "finite",
+            "beyond the range of the 32-bit floats",
         ),
         ("v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", "line 3", "finite"),
         ("v 0 0\n", "line 1", "3 to 7 numbers"),
@@ -486,4 +486,21 @@ fn degenerate_faces_keep_their_points() {
     // Blender drops `f 4 5 5` but keeps vertices 4 and 5: 5 points.
     let s = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv 6 6 6\nf 1 2 3\nf 4 5 5\n").unwrap();
     assert_eq!(s.meshes[0].source_point_count, 5);
+}
+
+/// Issue 17 silent misreads: a UTF-8 byte-order mark hid the first vertex (shifting every
+/// index), and a number too large for f32 was called "not finite".
+#[test]
+fn a_byte_order_mark_is_skipped_and_huge_numbers_say_why() {
+    let plain = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let with_bom = format!("\u{feff}{plain}");
+    let a = import(plain).unwrap();
+    let b = import(&with_bom).unwrap();
+    assert_eq!(
+        a.meshes[0].primitives[0].positions,
+        b.meshes[0].primitives[0].positions
+    );
+    let err = import("v 1e308 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap_err();
+    assert_eq!(err.location.as_deref(), Some("line 1"));
+    assert!(err.message.contains("beyond the range"), "{err}");
 }

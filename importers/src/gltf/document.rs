@@ -129,6 +129,10 @@ pub fn load_document(path: &Path, bytes: &[u8]) -> Result<GltfDocument, PluginEr
                 ),
             ));
         }
+        // Views are checked against the declared length, not against whatever follows it (a
+        // GLB chunk's padding, or a longer file): data past byteLength is not the buffer's.
+        let mut data = data;
+        data.truncate(byte_length);
         buffers.push(data);
     }
     doc.buffers = buffers;
