@@ -16,6 +16,7 @@ pub mod contact_log;
 pub mod deformation_damping;
 pub mod diagnostics;
 mod forces;
+mod integrator;
 pub mod joints;
 pub mod manipulator;
 pub mod miyazaki1996_velocity_dispersion;

@@ -26,65 +26,14 @@
 
 use super::constraints::TrajectoryConstraint;
 use super::contact::{bounding_box, box_may_touch, node_contacts, CONTACT_BLOCK};
+use super::diagnostics::StepStats;
 use super::forces::{gathered_spring_force, spring_forces, Adjacency};
+pub use super::integrator::Integrator;
+use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
+use super::substeps::SubstepChoice;
 use super::{NodeState, World};
 use nalgebra::Vector3;
-
-/// Time integration scheme of a [`World`].
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum Integrator {
-    /// Miyazaki's symplectic Euler with velocity dispersion (the default).
-    #[default]
-    SymplecticEuler,
-    /// Terasawa's iterative Newmark-β (module docs).
-    Newmark {
-        /// ¼ (average acceleration) or ⅙ (linear acceleration); any value in (0, ½].
-        beta: f64,
-        /// Relative tolerance on the change of the acceleration between iterations.
-        tolerance: f64,
-        max_iterations: u32,
-    },
-    /// Extended position-based dynamics with small steps and volumetric cells (the scene
-    /// file's default; see [`super::xpbd`]).
-    Xpbd,
-}
-
-impl Integrator {
-    /// Refuse parameters the step cannot use: β outside (0, ½], a tolerance that is not
-    /// positive and finite, or no iterations.
-    pub fn check(&self) -> Result<(), String> {
-        match *self {
-            Integrator::SymplecticEuler | Integrator::Xpbd => Ok(()),
-            Integrator::Newmark {
-                beta,
-                tolerance,
-                max_iterations,
-            } => {
-                if !(beta > 0.0 && beta <= 0.5) {
-                    Err(format!("Newmark beta must be in (0, 0.5], got {beta}"))
-                } else if !(tolerance.is_finite() && tolerance > 0.0) {
-                    Err(format!(
-                        "Newmark tolerance must be finite and positive, got {tolerance}"
-                    ))
-                } else if max_iterations == 0 {
-                    Err("Newmark max_iterations must be at least 1".to_string())
-                } else {
-                    Ok(())
-                }
-            }
-        }
-    }
-
-    /// Newmark-β with β = ¼, tolerance 1e-10, at most 50 iterations.
-    pub fn newmark() -> Integrator {
-        Integrator::Newmark {
-            beta: 0.25,
-            tolerance: 1e-10,
-            max_iterations: 50,
-        }
-    }
-}
 
 /// Newmark state and scratch, kept between steps.
 #[derive(Debug, Clone, Default)]
@@ -333,6 +282,42 @@ pub(crate) fn step(
         cap_hit: !converged,
         max_depth,
         dispersion,
+    }
+}
+
+/// Terasawa's Newmark-β behind [`Integrate`]: body–body contact forces at the substep's
+/// start, then the iterative step ([`step`]); substeps as the explicit integrator's.
+pub(crate) struct NewmarkBeta {
+    pub beta: f64,
+    pub tolerance: f64,
+    pub max_iterations: u32,
+}
+
+impl Integrate for NewmarkBeta {
+    fn choose_substeps(&self, world: &mut World, frame_dt: f64) -> SubstepChoice {
+        world.explicit_substeps(frame_dt)
+    }
+
+    fn substep(&self, world: &mut World, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        super::body_contact::step_contacts_of(world, dt, dt, None);
+        let out = step(world, dt, self.beta, self.tolerance, self.max_iterations);
+        world.time += dt;
+        acc.max_depth = acc.max_depth.max(out.max_depth);
+        acc.steps += 1;
+        acc.newmark_iterations += out.iterations;
+        acc.newmark_max_iterations = acc.newmark_max_iterations.max(out.iterations);
+        acc.newmark_cap_hits += out.cap_hit as u32;
+        acc.corrections += out.dispersion.corrections;
+        acc.iterations += out.dispersion.iterations;
+        acc.cap_hits += out.dispersion.hit_cap as u32;
+        StepStats {
+            newmark_iterations: out.iterations,
+            newmark_cap_hit: out.cap_hit,
+            dispersion_corrections: out.dispersion.corrections,
+            dispersion_iterations: out.dispersion.iterations,
+            dispersion_cap_hit: out.dispersion.hit_cap,
+            ..StepStats::default()
+        }
     }
 }
 

@@ -3,8 +3,75 @@
 //! damping, velocity dispersion, position update.
 
 use super::*;
+use crate::solver::integrator::Integrate;
+
+/// The papers' integrator behind [`Integrate`]: the explicit step, then the trajectory
+/// constraints enforced on the stepped state (module docs of `constraints`).
+pub(crate) struct SymplecticEuler;
+
+impl Integrate for SymplecticEuler {
+    fn choose_substeps(&self, world: &mut World, frame_dt: f64) -> SubstepChoice {
+        world.explicit_substeps(frame_dt)
+    }
+
+    fn substep(&self, world: &mut World, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        if world.constraints.is_empty() {
+            return world.euler_step(dt, acc);
+        }
+        let t = world.time;
+        let mut before = std::mem::take(&mut world.scratch.constrained_before);
+        before.resize_with(world.constraints.len(), Vec::new);
+        for (c, b) in world.constraints.iter().zip(before.iter_mut()) {
+            b.clear();
+            b.extend(c.nodes.iter().map(|&i| world.nodes.position[i]));
+        }
+        let stats = world.euler_step(dt, acc);
+        for (c, old) in world.constraints.iter().zip(before.iter()) {
+            let s = c.strength;
+            for (j, &i) in c.nodes.iter().enumerate() {
+                let target = c.target(j, t + dt);
+                let v_target = (target - old[j]) / dt;
+                if s >= 1.0 {
+                    world.nodes.position[i] = target;
+                    world.nodes.velocity[i] = v_target;
+                } else {
+                    let (x, v) = (world.nodes.position[i], world.nodes.velocity[i]);
+                    world.nodes.position[i] = x + (target - x) * s;
+                    world.nodes.velocity[i] = v + (v_target - v) * s;
+                }
+            }
+        }
+        world.scratch.constrained_before = before;
+        stats
+    }
+}
 
 impl World {
+    /// Substeps of the explicit integrators (symplectic Euler, Newmark-β): the accuracy and
+    /// stability bound of the stiffest spring and the contact layer ([`World::static_step`]),
+    /// and no node travelling more than `max_travel_fraction` of the shortest spring.
+    pub(crate) fn explicit_substeps(&mut self, frame_dt: f64) -> SubstepChoice {
+        let travel = self.settings.max_travel_fraction;
+        let v_max = self.max_speed();
+        let p = self.prepare();
+        let mut choice = p.static_step;
+        let mut n = if choice.dt.is_finite() {
+            (frame_dt / choice.dt).ceil().max(1.0)
+        } else {
+            1.0
+        };
+        if p.shortest_spring.is_finite() && v_max > 0.0 {
+            let by_speed = (v_max * frame_dt / (travel * p.shortest_spring)).ceil();
+            if by_speed > n {
+                n = by_speed;
+                choice.limited_by = "speed";
+            }
+        }
+        choice.substeps = n.min(u32::MAX as f64) as u32;
+        choice.dt = frame_dt / n;
+        choice
+    }
+
     /// Miyazaki's symplectic-Euler step (module docs).
     pub(super) fn euler_step(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
         let gravity = self.settings.gravity;

@@ -15,11 +15,12 @@ use super::contact_log::{ContactLog, ContactRecord, RigidScene};
 use super::deformation_damping::RigidScratch;
 use super::diagnostics::{FrameDiagnostics, SimulationError, StepStats};
 use super::forces::{gathered_spring_force, spring_energy, spring_forces, Adjacency, FloorOutput};
+use super::integrator::{FrameAccumulator, Integrator};
 use super::manipulator::{Capsule, ManipulatorTrack};
 use super::miyazaki1996_velocity_dispersion::{
     disperse_with, DispersionMode, DispersionScratch, SpringColouring, SpringHints,
 };
-use super::newmark::{Integrator, NewmarkState};
+use super::newmark::NewmarkState;
 use super::rigid::RigidBody;
 use super::stencil::{FloorInput, LatticeGrid, StencilPlan};
 use super::substeps::{accuracy_step, SubstepChoice};
@@ -33,6 +34,8 @@ use rayon::prelude::*;
 use std::ops::Range;
 
 mod euler;
+
+pub(crate) use euler::SymplecticEuler;
 
 /// World-wide settings, SI units, world frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -338,22 +341,6 @@ impl Prepared {
             + b(&self.residual_adjacency.offsets)
             + b(&self.residual_adjacency.links)
     }
-}
-
-/// Running totals over the substeps of one frame.
-#[derive(Debug, Clone, Copy, Default)]
-struct FrameAccumulator {
-    corrections: u64,
-    iterations: u32,
-    cap_hits: u32,
-    max_depth: f64,
-    reaction_sum: Vector3<f64>,
-    steps: u32,
-    newmark_iterations: u32,
-    newmark_max_iterations: u32,
-    newmark_cap_hits: u32,
-    /// Work of the manipulators on the bodies, J (XPBD steps).
-    manipulator_work: f64,
 }
 
 impl World {
@@ -672,7 +659,8 @@ impl World {
         best
     }
 
-    /// Substeps for an output frame of `frame_dt` seconds.
+    /// Substeps for an output frame of `frame_dt` seconds: the scene's fixed count, else the
+    /// integrator's choice ([`super::integrator::Integrate::choose_substeps`]).
     pub fn choose_substeps(&mut self, frame_dt: f64) -> SubstepChoice {
         if let Some(n) = self.settings.fixed_substeps {
             return SubstepChoice {
@@ -681,28 +669,8 @@ impl World {
                 limited_by: "fixed",
             };
         }
-        if self.settings.integrator == Integrator::Xpbd {
-            return super::xpbd::choose_substeps(self, frame_dt);
-        }
-        let travel = self.settings.max_travel_fraction;
-        let v_max = self.max_speed();
-        let p = self.prepare();
-        let mut choice = p.static_step;
-        let mut n = if choice.dt.is_finite() {
-            (frame_dt / choice.dt).ceil().max(1.0)
-        } else {
-            1.0
-        };
-        if p.shortest_spring.is_finite() && v_max > 0.0 {
-            let by_speed = (v_max * frame_dt / (travel * p.shortest_spring)).ceil();
-            if by_speed > n {
-                n = by_speed;
-                choice.limited_by = "speed";
-            }
-        }
-        choice.substeps = n.min(u32::MAX as f64) as u32;
-        choice.dt = frame_dt / n;
-        choice
+        let integrator = self.settings.integrator;
+        integrator.choose_substeps(self, frame_dt)
     }
 
     fn max_speed(&self) -> f64 {
@@ -716,14 +684,14 @@ impl World {
         on_worker(self.parallel_size(), || self.step_accumulate(dt, &mut acc))
     }
 
-    /// One step: spring forces (per spring), then one fused node pass (gather, gravity,
-    /// contact, velocity update), velocity dispersion, position update. Nothing is allocated
-    /// once the prepared buffers exist; every parallel loop runs over fixed chunks, so the
-    /// result does not depend on the thread count.
+    /// One substep: the integrator's ([`super::integrator`]), then the stages every integrator
+    /// shares: rigid bodies' frames, volume preservation, joints. Nothing is allocated once the
+    /// prepared buffers exist; every parallel loop runs over fixed chunks, so the result does
+    /// not depend on the thread count.
     fn step_accumulate(&mut self, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.rigid_before.resize_with(self.rigid.len(), Vec::new);
-        for (r, before) in self.rigid.iter().zip(&mut scratch.rigid_before) {
+        let rigid_before = &mut self.scratch.rigid_before;
+        rigid_before.resize_with(self.rigid.len(), Vec::new);
+        for (r, before) in self.rigid.iter().zip(rigid_before.iter_mut()) {
             before.clear();
             before.extend(
                 self.bodies[r.body]
@@ -732,71 +700,9 @@ impl World {
                     .map(|i| (self.nodes.position[i], self.nodes.velocity[i])),
             );
         }
-        let mut stats = match self.settings.integrator {
-            Integrator::SymplecticEuler if self.constraints.is_empty() => self.euler_step(dt, acc),
-            Integrator::SymplecticEuler => {
-                let t = self.time;
-                let before = &mut scratch.constrained_before;
-                before.resize_with(self.constraints.len(), Vec::new);
-                for (c, b) in self.constraints.iter().zip(before.iter_mut()) {
-                    b.clear();
-                    b.extend(c.nodes.iter().map(|&i| self.nodes.position[i]));
-                }
-                let stats = self.euler_step(dt, acc);
-                // Enforce the paths on the stepped state (module docs of `constraints`).
-                for (c, old) in self.constraints.iter().zip(before.iter()) {
-                    let s = c.strength;
-                    for (j, &i) in c.nodes.iter().enumerate() {
-                        let target = c.target(j, t + dt);
-                        let v_target = (target - old[j]) / dt;
-                        if s >= 1.0 {
-                            self.nodes.position[i] = target;
-                            self.nodes.velocity[i] = v_target;
-                        } else {
-                            let (x, v) = (self.nodes.position[i], self.nodes.velocity[i]);
-                            self.nodes.position[i] = x + (target - x) * s;
-                            self.nodes.velocity[i] = v + (v_target - v) * s;
-                        }
-                    }
-                }
-                stats
-            }
-            Integrator::Xpbd => {
-                let out = super::xpbd::step(self, dt);
-                acc.manipulator_work += out.capsule_work;
-                acc.max_depth = acc.max_depth.max(out.max_depth);
-                acc.steps += 1;
-                if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
-                    acc.reaction_sum -= out.capsule_force;
-                }
-                StepStats::default()
-            }
-            Integrator::Newmark {
-                beta,
-                tolerance,
-                max_iterations,
-            } => {
-                super::body_contact::step_contacts_of(self, dt, dt, None);
-                let out = super::newmark::step(self, dt, beta, tolerance, max_iterations);
-                self.time += dt;
-                acc.max_depth = acc.max_depth.max(out.max_depth);
-                acc.steps += 1;
-                acc.newmark_iterations += out.iterations;
-                acc.newmark_max_iterations = acc.newmark_max_iterations.max(out.iterations);
-                acc.newmark_cap_hits += out.cap_hit as u32;
-                acc.corrections += out.dispersion.corrections;
-                acc.iterations += out.dispersion.iterations;
-                acc.cap_hits += out.dispersion.hit_cap as u32;
-                StepStats {
-                    newmark_iterations: out.iterations,
-                    newmark_cap_hit: out.cap_hit,
-                    dispersion_corrections: out.dispersion.corrections,
-                    dispersion_iterations: out.dispersion.iterations,
-                    dispersion_cap_hit: out.dispersion.hit_cap,
-                    ..StepStats::default()
-                }
-            }
-        };
+        let integrator = self.settings.integrator;
+        let mut stats = integrator.substep(self, dt, acc);
+        let mut scratch = std::mem::take(&mut self.scratch);
         for (r, before) in self.rigid.iter_mut().zip(&scratch.rigid_before) {
             let range = self.bodies[r.body].nodes.clone();
             r.advance(&mut self.nodes, range, before, dt);

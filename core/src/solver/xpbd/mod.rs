@@ -28,6 +28,8 @@ mod lanes;
 
 use super::body_contact::step_contacts_of;
 use super::deformation_damping::RigidScratch;
+use super::diagnostics::StepStats;
+use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
@@ -227,6 +229,26 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
         substeps: n as u32,
         dt: frame_dt / n,
         limited_by,
+    }
+}
+
+/// Small-step XPBD behind [`Integrate`] (module docs).
+pub(crate) struct SmallStepXpbd;
+
+impl Integrate for SmallStepXpbd {
+    fn choose_substeps(&self, world: &mut World, frame_dt: f64) -> SubstepChoice {
+        choose_substeps(world, frame_dt)
+    }
+
+    fn substep(&self, world: &mut World, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
+        let out = step(world, dt);
+        acc.manipulator_work += out.capsule_work;
+        acc.max_depth = acc.max_depth.max(out.max_depth);
+        acc.steps += 1;
+        if !world.manipulators.is_empty() || !world.live_capsules.is_empty() {
+            acc.reaction_sum -= out.capsule_force;
+        }
+        StepStats::default()
     }
 }
 
