@@ -49,7 +49,7 @@ enum Command {
         #[arg(long)]
         fps: Option<f64>,
         /// Lattice cells along the longest side (bare meshes).
-        #[arg(long)]
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
         cells: Option<u32>,
         /// Material preset for bare meshes: jelly, soft_rubber, rubber, foam, wood, steel.
         #[arg(long)]
@@ -75,7 +75,8 @@ enum Command {
     Inspect {
         file: PathBuf,
         /// Lattice cells along the longest side for the fit preview.
-        #[arg(long, default_value_t = springbake_core::scene::DEFAULT_CELLS)]
+        #[arg(long, default_value_t = springbake_core::scene::DEFAULT_CELLS,
+              value_parser = clap::value_parser!(u32).range(1..))]
         cells: u32,
         /// Print JSON instead of text.
         #[arg(long)]

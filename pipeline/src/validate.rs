@@ -12,6 +12,8 @@ pub const MAX_FRAMES: usize = 10_000_000;
 pub const MAX_FIXED_SUBSTEPS: u32 = 100_000;
 /// Largest gravity, m/s² (a hundred times Jupiter's).
 const MAX_GRAVITY: f64 = 1000.0;
+/// Farthest a body may be moved, m (beyond it single-precision meshes lose their shape).
+const MAX_DISTANCE: f64 = 1.0e6;
 /// Largest initial speed of a body, m/s.
 const MAX_SPEED: f64 = 1.0e4;
 /// Young's modulus range, Pa (softer than any gel; stiffer than diamond).
@@ -94,6 +96,15 @@ pub fn numbers(scene: &SceneFile) -> Result<(), String> {
     }
     for (i, b) in scene.body.iter().enumerate() {
         finite3(&format!("body[{i}].offset"), &b.offset)?;
+        for (axis, &x) in b.offset.iter().enumerate() {
+            within(
+                &format!("body[{i}].offset[{axis}]"),
+                x,
+                -MAX_DISTANCE,
+                MAX_DISTANCE,
+                "m",
+            )?;
+        }
         finite3(&format!("body[{i}].velocity"), &b.velocity)?;
         let speed = b.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
         within(

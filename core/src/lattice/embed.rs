@@ -72,7 +72,10 @@ impl Embedding {
 
 fn containing_cell(lattice: &Lattice, p: &Point3<f64>) -> usize {
     let t = (p.coords - lattice.origin) / lattice.cell_size;
-    let base = [t.x.floor() as i64, t.y.floor() as i64, t.z.floor() as i64];
+    // A point far outside the grid (a vertex no triangle uses lies outside the fitted bounds)
+    // is clamped next to it first, so the neighbour offsets below cannot overflow.
+    let base: [i64; 3] =
+        std::array::from_fn(|a| t[a].floor().clamp(-2.0, f64::from(lattice.dims[a]) + 2.0) as i64);
     // The cell the point falls in, then neighbours it touches (points on shared faces, edges and
     // the grid's far boundary), then the nearest active cell.
     let mut best: Option<(f64, usize)> = None;

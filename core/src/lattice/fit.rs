@@ -114,6 +114,18 @@ pub fn fit_lattice(
     }
     let (lo, hi) = bounds(positions, triangles);
     let extent = hi - lo;
+    // Triangles that are all points or segments have nothing a lattice could hold; cells
+    // marked along a line of collinear vertices would simulate a mesh that is not there.
+    let has_area = triangles.iter().any(|t| {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let n = (b - a).cross(&(c - a));
+        n.norm() > 1e-12 * (b - a).norm_squared().max((c - a).norm_squared())
+    });
+    if !has_area {
+        return Err(FitError::Degenerate {
+            extent: [extent.x, extent.y, extent.z],
+        });
+    }
     let longest = extent.max();
     let cell = match settings.resolution {
         Resolution::CellsAlongLongest(n) => {
