@@ -10,12 +10,51 @@
 
 use nalgebra::Point3;
 
+/// Most grid samples one mesh gets on its long triangles (some 100 MB with their weights and
+/// embedding): beyond it the spacing grows for the whole mesh. Without the cap a small file of
+/// many repeated large triangles asked for 24 GB (issue 17).
+pub const MAX_GRID_SAMPLES: usize = 1 << 20;
+
+/// Grid subdivisions of a triangle whose longest edge is `longest` at `spacing` (≤ 2: the
+/// triangle's own vertices serve).
+fn subdivisions(longest: f64, spacing: f64) -> usize {
+    if spacing > 0.0 {
+        (longest / spacing).ceil().min(1e9) as usize
+    } else {
+        1
+    }
+}
+
+/// Grid samples the long triangles need at `spacing`.
+fn grid_samples(positions: &[Point3<f64>], triangles: &[[u32; 3]], spacing: f64) -> usize {
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+            match subdivisions(longest, spacing) {
+                n if n <= 2 || !longest.is_finite() => 0,
+                n => (n + 1).saturating_mul(n + 2) / 2,
+            }
+        })
+        .fold(0usize, usize::saturating_add)
+}
+
 /// Sample points and the surface area (m²) each stands for.
 pub fn surface_samples(
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],
     spacing: f64,
 ) -> (Vec<Point3<f64>>, Vec<f64>) {
+    // Coarsen the whole mesh's grid until it fits the cap (samples fall as 1/spacing²).
+    let mut spacing = spacing;
+    for _ in 0..64 {
+        let count = grid_samples(positions, triangles, spacing);
+        if count <= MAX_GRID_SAMPLES {
+            break;
+        }
+        spacing *= (count as f64 / MAX_GRID_SAMPLES as f64).sqrt().max(1.01);
+    }
     let mut vertex_area = vec![0.0; positions.len()];
     let mut points = Vec::new();
     let mut areas = Vec::new();
@@ -26,11 +65,7 @@ pub fn surface_samples(
             continue;
         }
         let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-        let n = if spacing > 0.0 {
-            (longest / spacing).ceil() as usize
-        } else {
-            1
-        };
+        let n = subdivisions(longest, spacing);
         // Up to twice the spacing the triangle's own vertices are close enough.
         if n <= 2 {
             for &i in t {
@@ -90,5 +125,22 @@ mod tests {
             total > 12.0 && total < 4.0 * std::f64::consts::PI,
             "{total}"
         );
+    }
+
+    #[test]
+    fn many_repeated_large_triangles_stay_within_the_sample_cap() {
+        let p = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ];
+        let t = vec![[0u32, 1, 2]; 100_000];
+        let (points, areas) = surface_samples(&p, &t, 0.01);
+        assert!(
+            points.len() <= MAX_GRID_SAMPLES + p.len(),
+            "{}",
+            points.len()
+        );
+        assert!((areas.iter().sum::<f64>() - 0.5 * 100_000.0).abs() < 1e-6 * 50_000.0);
     }
 }
