@@ -71,9 +71,12 @@ fn rebound(material: &Material, integrator: Integrator) {
         substeps = substeps.max(d.substeps);
         inverted = inverted.max(d.inverted_cells);
         let bottom = lowest(&w) - offset;
-        if bottom < 0.02 {
+        // Bounced once the ball moves up (a frame may miss the instant it touches).
+        let rising = w.nodes.velocity.iter().map(|v| v.y).sum::<f64>() > 0.0;
+        if bottom < 0.02 || rising {
             touched = true;
-        } else if touched {
+        }
+        if touched {
             peak = peak.max(bottom);
         }
     }

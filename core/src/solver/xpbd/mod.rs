@@ -25,6 +25,7 @@
 mod cells;
 mod contact;
 mod lanes;
+mod restitution;
 
 use super::body_contact::step_contacts_of;
 use super::deformation_damping::RigidScratch;
@@ -37,6 +38,7 @@ use cells::{CellInput, CellSet};
 use contact::Surfaces;
 use nalgebra::Vector3;
 use rayon::prelude::*;
+use restitution::Restitution;
 
 type V3 = Vector3<f64>;
 
@@ -59,6 +61,9 @@ const SUBSTEPS_PER_WAVE_CROSSING: f64 = 3.0;
 const TRAVEL_PER_SUBSTEP: f64 = 0.1;
 /// The same for a capsule's own speed (a thin capsule sweeping a soft body creases it).
 const CAPSULE_TRAVEL_PER_SUBSTEP: f64 = 0.05;
+/// How close to a plane, in shortest cell edges, a point counts as touching it for the
+/// restitution of stiff bodies (contacts leave points on the plane to rounding).
+const RESTITUTION_CONTACT_TOLERANCE: f64 = 1e-4;
 
 /// What the XPBD step derives from the world once (rebuilt when bodies change) and the
 /// buffers it reuses.
@@ -90,6 +95,8 @@ pub(crate) struct Model {
     point_contact: Vec<(V3, f64, V3)>,
     /// Whether a constraint pass has filled `point_contact` since the model was built.
     logged_once: bool,
+    /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
+    restitution: Restitution,
 }
 
 /// What one step reports to the world's frame totals.
@@ -158,6 +165,7 @@ impl Model {
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
             logged_once: false,
+            restitution: Restitution::build(world),
         }
     }
 
@@ -261,6 +269,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     // The contact log and the body–body / collider layer forces, at the substep's start.
     log_contacts(world, &model, dt);
     let time = world.time;
+    model.restitution.before(world, dt);
     predict(world, &mut model, dt);
     shift_bodies(world, &mut model);
     bind_paths(world, &mut model, time + dt);
@@ -278,6 +287,8 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
             .solve_barriers(&mut world.nodes.position, w, moved);
     }
     update_velocities(world, &model, dt);
+    let touch = RESTITUTION_CONTACT_TOLERANCE * model.shortest_edge;
+    model.restitution.after(world, dt, touch);
     damp_deformation(world, &mut model, dt);
     world.time += dt;
     world.xpbd = Some(model);
