@@ -7,10 +7,19 @@
 # (crashes, hangs) are copied to target/fuzz/findings/<target>/ and listed at the end.
 #
 #   scripts/fuzz.sh [SECONDS_PER_TARGET=900] [TARGET...]   (targets: gltf obj scene usd_mesh)
+#   scripts/fuzz.sh keep [TARGET...]   only minimise the last run's queues into fuzz/corpus
 set -euo pipefail
 cd "$(dirname "$0")/.."
-secs=${1:-900}
-shift || true
+keep_only=false
+if [ "${1:-}" = keep ]; then
+  keep_only=true
+  shift
+fi
+secs=900
+if [ "$keep_only" = false ] && [ $# -gt 0 ]; then
+  secs=$1
+  shift
+fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(gltf obj scene usd_mesh)
 
@@ -41,6 +50,29 @@ seed() { # target -> fills $work/seeds/<target>
   [ -n "$(ls -A "$dir")" ] || head -c 64 /dev/urandom > "$dir/random"
 }
 
+# afl-cmin.bash (the Python afl-cmin finds no coverage in afl.rs's persistent binaries).
+afl_bin=$(ls -d "$HOME"/.local/share/afl.rs/*/afl.rs-*/afl/bin 2>/dev/null | tail -1)
+
+keep() { # target: minimise its queue into fuzz/corpus/<target>, named by content hash
+  local t=$1 out=$work/out/$1/default/queue
+  [ -d "$out" ] || return 0
+  rm -rf "$work/cmin/$t"
+  AFL_SKIP_CPUFREQ=1 AFL_PATH="$afl_bin" PATH="$afl_bin:$PATH" \
+    "$afl_bin/afl-cmin.bash" -i "$out" -o "$work/cmin/$t" -t 10000 -m 2048 -- "$bin/$t" \
+    > "$work/$t.cmin.log" 2>&1 || true
+  if [ -n "$(ls -A "$work/cmin/$t" 2>/dev/null)" ]; then
+    mkdir -p fuzz/corpus/"$t"
+    # Cases kept before (e.g. fixed findings) stay.
+    for f in "$work/cmin/$t"/*; do cp "$f" fuzz/corpus/"$t"/"$(sha1sum "$f" | cut -c1-16)"; done
+  fi
+  echo "   $t: kept $(ls fuzz/corpus/"$t" 2>/dev/null | wc -l) cases"
+}
+
+if [ "$keep_only" = true ]; then
+  for t in "${targets[@]}"; do keep "$t"; done
+  exit 0
+fi
+
 for t in "${targets[@]}"; do
   seed "$t"
   out=$work/out/$t
@@ -54,14 +86,6 @@ for t in "${targets[@]}"; do
     "$out/default/fuzzer_stats" || true
   mkdir -p "$work/findings/$t"
   cp "$out"/default/crashes/id* "$out"/default/hangs/id* "$work/findings/$t"/ 2>/dev/null || true
-  # Keep the minimised queue as the regression corpus.
-  rm -rf "$work/cmin/$t"
-  AFL_SKIP_CPUFREQ=1 cargo afl cmin -i "$out/default/queue" -o "$work/cmin/$t" -t 10000 -m 2048 \
-    -- "$bin/$t" > "$work/$t.cmin.log" 2>&1 || true
-  if [ -n "$(ls -A "$work/cmin/$t" 2>/dev/null)" ]; then
-    mkdir -p fuzz/corpus/"$t"
-    # Short, stable names: the content's hash (cases kept before, e.g. fixed findings, stay).
-    for f in "$work/cmin/$t"/*; do cp "$f" fuzz/corpus/"$t"/"$(sha1sum "$f" | cut -c1-16)"; done
-  fi
-  echo "   kept $(ls fuzz/corpus/"$t" 2>/dev/null | wc -l) cases; findings: $(ls "$work/findings/$t" | wc -l)"
+  echo "   findings: $(ls "$work/findings/$t" | wc -l)"
+  keep "$t"
 done

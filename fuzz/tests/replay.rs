@@ -78,6 +78,7 @@ fn every_kept_case_runs_without_panic_in_bounded_time() {
             ran += 1;
         }
     }
+    println!("replayed {ran} cases");
     assert!(ran > 0, "no fuzz cases found under {}", corpus.display());
     assert!(
         failures.is_empty(),
