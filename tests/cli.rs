@@ -1,23 +1,9 @@
 //! The `springbake` binary as a user runs it: exit codes, messages, the corpus, atomic output.
 #![allow(clippy::unwrap_used)]
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
-fn springbake(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(args)
-        .output()
-        .expect("run springbake")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn corpus(rel: &str) -> PathBuf {
-    springbake_testkit::corpus_dir().join(rel)
-}
+use support::{corpus, springbake, stderr};
 
 #[test]
 fn demo_bakes_a_valid_gltf_with_a_manipulator_hit() {
@@ -184,5 +170,4 @@ fn usage_errors_exit_2() {
         "lists the formats it writes: {}",
         stderr(&o)
     );
-    let _ = Path::new("/tmp/x.fbx");
 }

@@ -3,29 +3,10 @@
 //! simulation, with the paths in the message.
 #![allow(clippy::unwrap_used)]
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod support;
 
-fn springbake(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(args)
-        .output()
-        .expect("run springbake")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn cube(dir: &Path, name: &str) -> std::path::PathBuf {
-    let path = dir.join(name);
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
-        &path,
-    )
-    .unwrap();
-    path
-}
+use std::process::Output;
+use support::{cube, springbake, stderr};
 
 fn refused(o: &Output, needle: &str) {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(o));

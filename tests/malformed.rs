@@ -5,6 +5,8 @@
 //! names the file, peak memory under 1 GB, and never a panic.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -280,51 +282,64 @@ fn obj_cases(cases: &mut Vec<Case>, dir: &Path) {
 }
 
 fn scene_cases(cases: &mut Vec<Case>, dir: &Path) {
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
-        dir.join("cube.obj"),
-    )
-    .unwrap();
+    support::cube(dir, "cube.obj");
     let base = "[output]\npath = \"out.glb\"\nframes = 2\n";
     let body = "[[body]]\nsource = \"cube.obj\"\n";
     // (section text, key the message must name)
     let mut bad: Vec<(String, &str)> = Vec::new();
-    for v in ["nan", "inf", "-1.0", "1e30"] {
-        bad.push((format!("[world]\ngravity = {v}\n{body}"), "gravity"));
-        bad.push((
-            format!("{body}velocity = [0.0, {v}, 0.0]\n").replace("-1.0", "1e5"),
+    // Each key with NaN, infinity, a negative and a huge value; where one of those is valid
+    // for the key (a negative velocity, a huge offset is caught, …) another bad one stands in.
+    let keys: [(&str, &str, [&str; 4]); 9] = [
+        (
+            "[world]\ngravity = V\nBODY",
+            "gravity",
+            ["nan", "inf", "-1.0", "1e30"],
+        ),
+        (
+            "BODYvelocity = [0.0, V, 0.0]\n",
             "velocity",
-        ));
-        bad.push((
-            format!("{body}offset = [{v}, 0.0, 0.0]\n").replace("-1.0", "nan"),
+            ["nan", "inf", "1e5", "1e30"],
+        ),
+        (
+            "BODYoffset = [V, 0.0, 0.0]\n",
             "offset",
-        ));
-        bad.push((
-            format!("{body}material = {{ young = {v}, density = 1000 }}\n"),
+            ["nan", "inf", "nan", "1e30"],
+        ),
+        (
+            "BODYmaterial = { young = V, density = 1000 }\n",
             "young",
-        ));
-        bad.push((
-            format!("{body}material = {{ young = 1e6, density = {v} }}\n"),
+            ["nan", "inf", "-1.0", "1e30"],
+        ),
+        (
+            "BODYmaterial = { young = 1e6, density = V }\n",
             "density",
-        ));
-        bad.push((
-            format!("[world]\nfriction = {v}\n{body}").replace("1e30", "nan"),
+            ["nan", "inf", "-1.0", "1e30"],
+        ),
+        (
+            "[world]\nfriction = V\nBODY",
             "friction",
-        ));
-        bad.push((
-            format!("[world]\ncontact_thickness = {v}\n{body}").replace("1e30", "0.0"),
+            ["nan", "inf", "-1.0", "nan"],
+        ),
+        (
+            "[world]\ncontact_thickness = V\nBODY",
             "contact_thickness",
-        ));
-        bad.push((
-            format!("[world]\nfloor = {v}\n{body}")
-                .replace("-1.0", "nan")
-                .replace("1e30", "inf"),
+            ["nan", "inf", "-1.0", "0.0"],
+        ),
+        (
+            "[world]\nfloor = V\nBODY",
             "floor",
-        ));
-        bad.push((
-            format!("{body}cell_size = {v}\n").replace("1e30", "0.0"),
+            ["nan", "inf", "nan", "inf"],
+        ),
+        (
+            "BODYcell_size = V\n",
             "cell_size",
-        ));
+            ["nan", "inf", "-1.0", "0.0"],
+        ),
+    ];
+    for (template, key, values) in keys {
+        for v in values {
+            bad.push((template.replace('V', v).replace("BODY", body), key));
+        }
     }
     bad.push((
         format!("[world.walls]\nmin = [1.0, 0.0, 0.0]\nmax = [0.0, 1.0, 1.0]\n{body}"),
