@@ -287,57 +287,41 @@ fn scene_cases(cases: &mut Vec<Case>, dir: &Path) {
     let body = "[[body]]\nsource = \"cube.obj\"\n";
     // (section text, key the message must name)
     let mut bad: Vec<(String, &str)> = Vec::new();
-    // Each key with NaN, infinity, a negative and a huge value; where one of those is valid
-    // for the key (a negative velocity, a huge offset is caught, …) another bad one stands in.
-    let keys: [(&str, &str, [&str; 4]); 9] = [
-        (
-            "[world]\ngravity = V\nBODY",
-            "gravity",
-            ["nan", "inf", "-1.0", "1e30"],
-        ),
+    // Each key with the bad values for it: NaN, infinity, and a negative, zero or huge value
+    // where that is out of the key's range.
+    let keys = [
+        ("[world]\ngravity = V\nBODY", "gravity", "nan inf -1.0 1e30"),
         (
             "BODYvelocity = [0.0, V, 0.0]\n",
             "velocity",
-            ["nan", "inf", "1e5", "1e30"],
+            "nan inf 1e5 1e30",
         ),
         (
             "BODYoffset = [V, 0.0, 0.0]\n",
             "offset",
-            ["nan", "inf", "nan", "1e30"],
+            "nan inf 1e30 -1e30",
         ),
         (
             "BODYmaterial = { young = V, density = 1000 }\n",
             "young",
-            ["nan", "inf", "-1.0", "1e30"],
+            "nan inf -1.0 1e30",
         ),
         (
             "BODYmaterial = { young = 1e6, density = V }\n",
             "density",
-            ["nan", "inf", "-1.0", "1e30"],
+            "nan inf -1.0 1e30",
         ),
-        (
-            "[world]\nfriction = V\nBODY",
-            "friction",
-            ["nan", "inf", "-1.0", "nan"],
-        ),
+        ("[world]\nfriction = V\nBODY", "friction", "nan inf -1.0"),
         (
             "[world]\ncontact_thickness = V\nBODY",
             "contact_thickness",
-            ["nan", "inf", "-1.0", "0.0"],
+            "nan inf -1.0 0.0",
         ),
-        (
-            "[world]\nfloor = V\nBODY",
-            "floor",
-            ["nan", "inf", "nan", "inf"],
-        ),
-        (
-            "BODYcell_size = V\n",
-            "cell_size",
-            ["nan", "inf", "-1.0", "0.0"],
-        ),
+        ("[world]\nfloor = V\nBODY", "floor", "nan inf -inf"),
+        ("BODYcell_size = V\n", "cell_size", "nan inf -1.0 0.0"),
     ];
     for (template, key, values) in keys {
-        for v in values {
+        for v in values.split_whitespace() {
             bad.push((template.replace('V', v).replace("BODY", body), key));
         }
     }
