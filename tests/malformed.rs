@@ -368,11 +368,23 @@ fn scene_cases(cases: &mut Vec<Case>, dir: &Path) {
             "fps",
         ),
         (
+            "[output]\npath = \"o.pc2\"\ncache = \"pca\"\n[[body]]\nsource = \"cube.obj\"\n",
+            "for glTF outputs",
+        ),
+        (
+            "[output]\nmax_error = 0.001\n[[body]]\nsource = \"cube.obj\"\n",
+            "max_error",
+        ),
+        (
+            "[output]\ncache = \"pca\"\nmax_error = 0.0\n[[body]]\nsource = \"cube.obj\"\n",
+            "max_error",
+        ),
+        (
             "[output]\npath = \"out.xyz\"\n[[body]]\nsource = \"cube.obj\"\n",
             "out.xyz",
         ),
         ("not toml at all [[[", "line"),
-        ("\u{0}\u{1}\u{2}", "raw5.toml"),
+        ("\u{0}\u{1}\u{2}", "key with no value"),
     ]
     .into_iter()
     .enumerate()

@@ -89,6 +89,26 @@ pub enum CacheKind {
     Morph,
     /// The lattice as a skeleton, the mesh skinned to it (glTF only).
     Skin,
+    /// The fewest principal components of the per-frame displacements that keep every vertex
+    /// within `max_error_um` micrometres of the bake, as morph targets with per-frame weights
+    /// (glTF only).
+    Pca { max_error_um: u32 },
+}
+
+/// The compact cache's default bound: 1 mm.
+pub const DEFAULT_PCA_MAX_ERROR_UM: u32 = 1000;
+
+impl From<crate::scene::CacheSpec> for CacheKind {
+    /// The cache a scene's `cache` names (`"pca"` at the default bound).
+    fn from(spec: crate::scene::CacheSpec) -> CacheKind {
+        match spec {
+            crate::scene::CacheSpec::Morph => CacheKind::Morph,
+            crate::scene::CacheSpec::Skin => CacheKind::Skin,
+            crate::scene::CacheSpec::Pca => CacheKind::Pca {
+                max_error_um: DEFAULT_PCA_MAX_ERROR_UM,
+            },
+        }
+    }
 }
 
 /// Export options.

@@ -79,9 +79,12 @@ pub struct OutputSection {
     pub fps: f64,
     #[serde(default = "default_frames")]
     pub frames: usize,
-    /// `"morph"` (default) or `"skin"` (lattice-as-skin glTF).
+    /// `"morph"` (default), `"skin"` (lattice-as-skin glTF) or `"pca"` (compact morphs).
     #[serde(default)]
     pub cache: CacheSpec,
+    /// `cache = "pca"`: the largest vertex error allowed, metres (default 1 mm).
+    #[serde(default)]
+    pub max_error: Option<f64>,
 }
 
 fn default_output_path() -> PathBuf {
@@ -101,6 +104,7 @@ impl Default for OutputSection {
             fps: default_fps(),
             frames: default_frames(),
             cache: CacheSpec::default(),
+            max_error: None,
         }
     }
 }
@@ -111,6 +115,8 @@ pub enum CacheSpec {
     #[default]
     Morph,
     Skin,
+    /// Principal components of the displacements as a few morph targets (`max_error`).
+    Pca,
 }
 
 /// `[world]`

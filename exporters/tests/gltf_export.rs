@@ -381,6 +381,57 @@ fn morph_glb_is_valid_and_plays_the_bake() {
     }
 }
 
+/// Issue 23 item 3: the compact cache plays the bake within its bound (world metres) with a
+/// few targets, is validator-clean, and is smaller than one target per frame.
+#[test]
+fn pca_cache_plays_the_bake_within_its_bound_in_a_fraction_of_the_size() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["icosphere.glb", "two_objects.glb"] {
+        let scene = import(&corpus(name));
+        let baked = bake_all(&scene);
+        let morph = export_to(
+            dir.path(),
+            &format!("m_{name}"),
+            &scene,
+            &baked,
+            CacheKind::Morph,
+        );
+        for bound_um in [1000, 10] {
+            let cache = CacheKind::Pca {
+                max_error_um: bound_um,
+            };
+            let files = export_to(
+                dir.path(),
+                &format!("p{bound_um}_{name}"),
+                &scene,
+                &baked,
+                cache,
+            );
+            springbake_testkit::assert_gltf_valid(&files[0].path);
+            let doc = load(&files[0].path);
+            let err = max_error(&doc, &scene, &baked);
+            let bound = f64::from(bound_um) * 1e-6;
+            // f32 targets and weights add rounding on top of the components' own error.
+            assert!(
+                err <= bound * 1.01 + 1e-5,
+                "{name}: plays {err} m off, bound {bound}"
+            );
+            for m in doc.array("meshes") {
+                let c = &m["extras"]["springbake_cache"];
+                assert_eq!(c["kind"], "pca");
+                assert!(c["max_error_m"].as_f64().unwrap() <= bound, "{c}");
+                let k = c["components"].as_u64().unwrap() as usize;
+                assert!(k < FRAMES, "{name}: {k} components for {FRAMES} frames");
+            }
+            let (pca_size, morph_size) = (files[0].bytes.len(), morph[0].bytes.len());
+            assert!(
+                pca_size < morph_size,
+                "{name}: {pca_size} vs {morph_size} bytes"
+            );
+        }
+    }
+}
+
 #[test]
 fn skin_cache_is_valid_and_matches_the_morph_bake() {
     let dir = tempfile::tempdir().unwrap();

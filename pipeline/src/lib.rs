@@ -297,13 +297,23 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
     }
 }
 
+/// The cache `[output]` asks for, with the compact cache's bound (`max_error`, metres).
+pub fn cache_kind(output: &springbake_core::scene::OutputSection) -> CacheKind {
+    match (output.cache, output.max_error) {
+        (CacheSpec::Pca, Some(m)) => CacheKind::Pca {
+            max_error_um: (m * 1e6).round().clamp(1.0, u32::MAX as f64) as u32,
+        },
+        (spec, _) => spec.into(),
+    }
+}
+
 /// Run the exporter for the output's extension.
 pub fn export(
     registry: &Registry,
     prepared: &Prepared,
     baked: &springbake_core::bake::BakedScene,
     output: &Path,
-    cache: CacheSpec,
+    cache: impl Into<CacheKind>,
 ) -> Result<Vec<OutputFile>, PipelineError> {
     let exporter = registry.exporter_for(output).ok_or_else(|| {
         PipelineError::Usage(format!(
@@ -314,10 +324,7 @@ pub fn export(
     })?;
     let settings = ExportSettings {
         path: output.to_path_buf(),
-        cache: match cache {
-            CacheSpec::Morph => CacheKind::Morph,
-            CacheSpec::Skin => CacheKind::Skin,
-        },
+        cache: cache.into(),
     };
     Ok(exporter.export(&prepared.export_scene, baked, &settings)?)
 }
@@ -375,7 +382,7 @@ pub fn bake(
         &prepared,
         &baked,
         &output,
-        loaded.scene.output.cache,
+        cache_kind(&loaded.scene.output),
     )?;
     write_outputs(&files, &loaded.inputs())?;
     seconds.export = t2.elapsed().as_secs_f64();

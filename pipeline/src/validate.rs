@@ -59,6 +59,7 @@ pub fn numbers(scene: &SceneFile) -> Result<(), String> {
         ));
     }
     within("output.fps", scene.output.fps, 1e-3, 1e4, "frames/s")?;
+    cache(&scene.output)?;
     let w = &scene.world;
     within("world.gravity", w.gravity, 0.0, MAX_GRAVITY, "m/s²")?;
     if let Some(room) = &w.walls {
@@ -162,6 +163,34 @@ pub fn floor(scene: &SceneFile) -> Result<(), String> {
         Some(h) if !h.is_finite() => Err(format!("world.floor must be finite, got {h}")),
         _ => Ok(()),
     }
+}
+
+/// `output.cache` and `output.max_error` against the output's format.
+fn cache(o: &springbake_core::scene::OutputSection) -> Result<(), String> {
+    use springbake_core::scene::CacheSpec;
+    let gltf = o
+        .path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
+    let name = match o.cache {
+        CacheSpec::Morph => None,
+        CacheSpec::Skin => Some("skin"),
+        CacheSpec::Pca => Some("pca"),
+    };
+    if let (Some(name), false) = (name, gltf) {
+        return Err(format!(
+            "output.cache = \"{name}\" is for glTF outputs (.glb, .gltf), not {}",
+            o.path.display()
+        ));
+    }
+    if let Some(m) = o.max_error {
+        if o.cache != CacheSpec::Pca {
+            return Err("output.max_error: only with cache = \"pca\"".into());
+        }
+        within("output.max_error", m, 1e-6, 1.0, "m")?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

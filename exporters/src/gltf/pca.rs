@@ -1,0 +1,161 @@
+//! The compact morph cache (`cache = "pca"`, issue 23 item 3): a mesh's per-frame
+//! displacements from its rest pose, `D` (frames × 3·vertices), as the fewest principal
+//! components that keep every vertex within a bound: `D ≈ W·T`, `T` the K morph targets and
+//! `W` the per-frame weights. The components come from the eigenvectors of the frames' Gram
+//! matrix `D·Dᵀ` (frames × frames, small next to the vertices), so the weights `U` are
+//! orthonormal columns and any other per-vertex attribute (the normals' change) is fitted to
+//! the same weights by least squares as `Uᵀ·X`.
+
+use springbake_core::nalgebra::{DMatrix, SymmetricEigen};
+
+/// Most frames the Gram matrix is built for (4096² doubles are 128 MB).
+pub const MAX_FRAMES: usize = 4096;
+/// Most components kept; past them the full morph cache is smaller anyway.
+pub const MAX_COMPONENTS: usize = 256;
+
+/// A mesh's displacements reduced to K components.
+pub struct Components {
+    /// Per frame, the K weights (frame-major).
+    pub weights: Vec<Vec<f64>>,
+    /// Per component, the target: 3 values per vertex.
+    pub targets: Vec<Vec<f64>>,
+    /// Orthonormal frame vectors of the kept components, to fit other attributes.
+    basis: Vec<Vec<f64>>,
+    /// Largest vertex distance between the bake and its reconstruction, in the rows' units.
+    pub max_error: f64,
+}
+
+impl Components {
+    /// The targets of another attribute `rows` (frames × 3·vertices) for the same weights,
+    /// least squares.
+    pub fn fit(&self, rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        project(&self.basis, rows)
+    }
+}
+
+/// `Σ_f basis[k][f] · rows[f]` for every k.
+fn project(basis: &[Vec<f64>], rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let width = rows.first().map_or(0, Vec::len);
+    basis
+        .iter()
+        .map(|u| {
+            let mut t = vec![0.0; width];
+            for (row, &uf) in rows.iter().zip(u) {
+                for (ti, &x) in t.iter_mut().zip(row) {
+                    *ti += uf * x;
+                }
+            }
+            t
+        })
+        .collect()
+}
+
+/// The fewest components of `rows` (frames × 3·vertices) whose reconstruction leaves no
+/// vertex farther than `bound` from its row, or all that carry any variance (at most
+/// [`MAX_COMPONENTS`]) when none do.
+pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components, String> {
+    let frames = rows.len();
+    if frames > MAX_FRAMES {
+        return Err(format!(
+            "cache = \"pca\" handles at most {MAX_FRAMES} frames, the bake has {frames}; use \
+             cache = \"morph\" or \"skin\""
+        ));
+    }
+    let gram = DMatrix::from_fn(frames, frames, |a, b| {
+        rows[a]
+            .iter()
+            .zip(&rows[b])
+            .map(|(x, y)| x * y)
+            .sum::<f64>()
+    });
+    let eigen = SymmetricEigen::new(gram);
+    let mut order: Vec<usize> = (0..frames).collect();
+    // Largest variance first; ties by index so the order is deterministic.
+    order.sort_by(|&a, &b| {
+        eigen.eigenvalues[b]
+            .total_cmp(&eigen.eigenvalues[a])
+            .then(a.cmp(&b))
+    });
+    let largest = order
+        .first()
+        .map_or(0.0, |&i| eigen.eigenvalues[i])
+        .max(0.0);
+    let mut residual: Vec<Vec<f64>> = rows.to_vec();
+    let mut components = Components {
+        weights: vec![Vec::new(); frames],
+        targets: Vec::new(),
+        basis: Vec::new(),
+        max_error: max_vertex_error(&residual),
+    };
+    for &i in &order {
+        if components.max_error <= bound || components.targets.len() == MAX_COMPONENTS {
+            break;
+        }
+        // Components with no variance left (to rounding) add nothing.
+        if eigen.eigenvalues[i] <= largest * 1e-24 {
+            break;
+        }
+        let u: Vec<f64> = eigen.eigenvectors.column(i).iter().copied().collect();
+        let target = project(std::slice::from_ref(&u), rows).remove(0);
+        for (f, row) in residual.iter_mut().enumerate() {
+            for (r, &t) in row.iter_mut().zip(&target) {
+                *r -= u[f] * t;
+            }
+            components.weights[f].push(u[f]);
+        }
+        components.targets.push(target);
+        components.basis.push(u);
+        components.max_error = max_vertex_error(&residual);
+    }
+    Ok(components)
+}
+
+/// Largest length of a vertex's 3 values in any row.
+fn max_vertex_error(rows: &[Vec<f64>]) -> f64 {
+    rows.iter()
+        .flat_map(|row| row.chunks_exact(3))
+        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn a_motion_of_two_modes_needs_two_components_and_reconstructs() {
+        // 30 frames of 50 vertices: a sway (x) and a squash (y), each with its own time course.
+        let rows: Vec<Vec<f64>> = (0..30)
+            .map(|f| {
+                let t = f as f64 / 30.0;
+                (0..50)
+                    .flat_map(|v| {
+                        let h = v as f64 / 50.0;
+                        [
+                            0.1 * h * (6.0 * t).sin(),
+                            -0.05 * h * h * (3.0 * t).cos(),
+                            0.0,
+                        ]
+                    })
+                    .collect()
+            })
+            .collect();
+        let c = principal_components(&rows, 1e-9).unwrap();
+        assert_eq!(c.targets.len(), 2);
+        assert!(c.max_error < 1e-9, "{}", c.max_error);
+        for (f, row) in rows.iter().enumerate() {
+            for (i, &x) in row.iter().enumerate() {
+                let back: f64 = (0..2).map(|k| c.weights[f][k] * c.targets[k][i]).sum();
+                assert!((back - x).abs() < 1e-9);
+            }
+        }
+        // A loose bound keeps only the larger mode.
+        let one = principal_components(&rows, 0.06).unwrap();
+        assert_eq!(one.targets.len(), 1);
+        assert!(one.max_error <= 0.06);
+        // A still mesh needs none.
+        let still = principal_components(&vec![vec![0.0; 9]; 4], 1e-6).unwrap();
+        assert!(still.targets.is_empty());
+    }
+}
