@@ -609,7 +609,6 @@ impl Pca {
             .max(f64::MIN_POSITIVE);
         let metres_per_local = self.metres_per_unit * scale;
         let components = pca::principal_components(&rows, self.max_error_m / metres_per_local)?;
-        let k = components.targets.len();
         // The smooth normals' change, fitted to the same weights.
         let normal_of = |positions: &[[f32; 3]]| -> Vec<[f32; 3]> {
             let mut out = Vec::with_capacity(positions.len());
@@ -624,6 +623,11 @@ impl Pca {
         let rest_normals = normal_of(&rest);
         let normal_rows = delta_rows(&mut bm.frames.iter().map(|f| normal_of(f)), &rest_normals);
         let normal_targets = components.fit(&normal_rows);
+        // Players clamp morph weights to [0, 1] (Blender's shape-key sliders do): each
+        // component's weights are mapped onto [0, 1] and its low end moved into one "offset"
+        // target held at weight 1.
+        let cache = pca::unit_weights(components, normal_targets);
+        let k = cache.targets.len();
         let vec3s = |t: &[f64], range: std::ops::Range<usize>| -> Vec<[f32; 3]> {
             t[range.start * 3..range.end * 3]
                 .chunks_exact(3)
@@ -637,7 +641,7 @@ impl Pca {
                 .get("NORMAL")
                 .is_some();
             let mut targets = Vec::with_capacity(k);
-            for (t, nt) in components.targets.iter().zip(&normal_targets) {
+            for (t, nt) in cache.targets.iter().zip(&cache.normal_targets) {
                 let mut target = json!({"POSITION": b.vec3(&vec3s(t, range.clone()), true)});
                 if has_normal {
                     target["NORMAL"] = json!(b.vec3(&vec3s(nt, range.clone()), false));
@@ -655,17 +659,16 @@ impl Pca {
         }
         m["extras"]["springbake_cache"] = json!({
             "kind": "pca",
-            "components": k,
-            "max_error_m": components.max_error * metres_per_local,
+            "components": cache.components,
+            "max_error_m": cache.max_error * metres_per_local,
             "bound_m": self.max_error_m,
         });
         if k == 0 {
             return Ok(()); // the mesh does not move from its rest pose
         }
         m["weights"] = json!(vec![0.0; k]);
-        m["extras"]["targetNames"] =
-            json!((0..k).map(|i| format!("pc_{i:03}")).collect::<Vec<_>>());
-        let weights: Vec<f32> = components
+        m["extras"]["targetNames"] = json!(cache.names);
+        let weights: Vec<f32> = cache
             .weights
             .iter()
             .flat_map(|w| w.iter().map(|&x| x as f32))

@@ -156,10 +156,13 @@ fn baked_gltf_passes_the_validator_and_plays_in_blender() {
     let dir = tempfile::tempdir().unwrap();
     let frames = [0usize, 5, 12, 23];
     let mut specs = Vec::new();
-    for (name, cache) in [
-        ("morph.glb", CacheSpec::Morph),
-        ("skin.glb", CacheSpec::Skin),
-    ] {
+    // The compact cache plays within its default bound (1 mm) instead of exactly.
+    let caches = [
+        ("morph.glb", CacheSpec::Morph, 1e-4),
+        ("skin.glb", CacheSpec::Skin, 1e-4),
+        ("pca.glb", CacheSpec::Pca, 1e-3 + 1e-4),
+    ];
+    for (name, cache, _) in caches {
         let out = dir.path().join(name);
         let (prepared, baked, files) = bake_mesh(&corpus("two_objects.glb"), &out, 24, cache);
         assert_eq!(files, vec![out.clone()]);
@@ -181,13 +184,13 @@ fn baked_gltf_passes_the_validator_and_plays_in_blender() {
     let out =
         springbake_testkit::run_python_client("gltf_roundtrip.py", &[spec_path.to_str().unwrap()]);
     let report = springbake_testkit::last_json_line(&out);
-    for r in report["files"].as_array().unwrap() {
+    for (r, (_, _, tolerance)) in report["files"].as_array().unwrap().iter().zip(caches) {
         assert_eq!(r["frame_offset"], 0, "{r}");
         assert_eq!(r["visible_mesh_objects"], 2, "{r}");
         for o in r["objects"].as_array().unwrap() {
             let err = o["max_error"].as_f64().unwrap();
             assert!(
-                err <= 1e-4,
+                err <= tolerance,
                 "{}: Blender differs from our bake by {err} m",
                 o["name"]
             );

@@ -33,6 +33,65 @@ impl Components {
     }
 }
 
+/// A cache ready to write: targets whose weights stay in [0, 1] at every frame.
+pub struct UnitCache {
+    /// Per frame, one weight per target.
+    pub weights: Vec<Vec<f64>>,
+    pub targets: Vec<Vec<f64>>,
+    pub normal_targets: Vec<Vec<f64>>,
+    pub names: Vec<String>,
+    /// Principal components kept (the offset target not counted).
+    pub components: usize,
+    pub max_error: f64,
+}
+
+/// Maps each component's weights onto [0, 1] (`w = lo + (hi − lo)·w'`), scaling its targets
+/// by `hi − lo` and gathering `Σ lo·target` into a first target named `offset`, weight 1 at
+/// every frame (left out when it is zero). The motion is the same to rounding.
+pub fn unit_weights(c: Components, normal_targets: Vec<Vec<f64>>) -> UnitCache {
+    let k = c.targets.len();
+    let width = c.targets.first().map_or(0, Vec::len);
+    let (mut offset, mut offset_n) = (vec![0.0; width], vec![0.0; width]);
+    let (mut targets, mut normals) = (c.targets, normal_targets);
+    let mut weights = c.weights;
+    for j in 0..k {
+        let lo = weights.iter().map(|w| w[j]).fold(f64::INFINITY, f64::min);
+        let hi = weights
+            .iter()
+            .map(|w| w[j])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let span = if hi > lo { hi - lo } else { 1.0 };
+        for (o, &t) in offset.iter_mut().zip(&targets[j]) {
+            *o += lo * t;
+        }
+        for (o, &t) in offset_n.iter_mut().zip(&normals[j]) {
+            *o += lo * t;
+        }
+        targets[j].iter_mut().for_each(|t| *t *= span);
+        normals[j].iter_mut().for_each(|t| *t *= span);
+        for w in &mut weights {
+            w[j] = (w[j] - lo) / span;
+        }
+    }
+    let mut names: Vec<String> = (0..k).map(|i| format!("pc_{i:03}")).collect();
+    if k > 0 && offset.iter().any(|&x| x != 0.0) {
+        targets.insert(0, offset);
+        normals.insert(0, offset_n);
+        names.insert(0, "offset".into());
+        for w in &mut weights {
+            w.insert(0, 1.0);
+        }
+    }
+    UnitCache {
+        weights,
+        targets,
+        normal_targets: normals,
+        names,
+        components: k,
+        max_error: c.max_error,
+    }
+}
+
 /// `Σ_f basis[k][f] · rows[f]` for every k.
 fn project(basis: &[Vec<f64>], rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let width = rows.first().map_or(0, Vec::len);
@@ -147,6 +206,21 @@ mod tests {
         for (f, row) in rows.iter().enumerate() {
             for (i, &x) in row.iter().enumerate() {
                 let back: f64 = (0..2).map(|k| c.weights[f][k] * c.targets[k][i]).sum();
+                assert!((back - x).abs() < 1e-9);
+            }
+        }
+        // Weights in [0, 1] play the same motion.
+        let unit = unit_weights(
+            principal_components(&rows, 1e-9).unwrap(),
+            vec![vec![0.0; 150]; 2],
+        );
+        assert_eq!(unit.names[0], "offset");
+        for (f, row) in rows.iter().enumerate() {
+            assert!(unit.weights[f].iter().all(|w| (0.0..=1.0).contains(w)));
+            for (i, &x) in row.iter().enumerate() {
+                let back: f64 = (0..unit.targets.len())
+                    .map(|k| unit.weights[f][k] * unit.targets[k][i])
+                    .sum();
                 assert!((back - x).abs() < 1e-9);
             }
         }
