@@ -19,6 +19,10 @@ pub struct RigidMotion {
     pub centre: Vector3<f64>,
     pub velocity: Vector3<f64>,
     pub angular_velocity: Vector3<f64>,
+    /// Total mass, kg.
+    pub mass: f64,
+    /// Inverse inertia about the centre (zero where the inertia is singular).
+    pub inv_inertia: Matrix3<f64>,
 }
 
 impl RigidMotion {
@@ -81,6 +85,8 @@ pub fn rigid_motion_in(
             centre: Vector3::zeros(),
             velocity: Vector3::zeros(),
             angular_velocity: Vector3::zeros(),
+            mass: 0.0,
+            inv_inertia: Matrix3::zeros(),
         };
     }
     let (centre, velocity) = (mx / m, mv / m);
@@ -107,14 +113,13 @@ pub fn rigid_motion_in(
         .fold((Matrix3::zeros(), Vector3::zeros()), |a, b| {
             (a.0 + b.0, a.1 + b.1)
         });
-    let angular_velocity = inertia
-        .try_inverse()
-        .map(|inv| inv * momentum)
-        .unwrap_or_else(Vector3::zeros);
+    let inv_inertia = inertia.try_inverse().unwrap_or_else(Matrix3::zeros);
     RigidMotion {
         centre,
         velocity,
-        angular_velocity,
+        angular_velocity: inv_inertia * momentum,
+        mass: m,
+        inv_inertia,
     }
 }
 

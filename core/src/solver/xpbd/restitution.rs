@@ -12,61 +12,15 @@
 //! where the cells resolve the impact and bounce the body by themselves (rubber, jelly, foam).
 //! Resting contact (approach slower than gravity's two substeps) gets none.
 
+use super::super::deformation_damping::{rigid_motion_in, RigidMotion, RigidScratch};
 use super::super::World;
-use nalgebra::{Matrix3, Vector3};
-use std::ops::Range;
+use nalgebra::Vector3;
 
 type V3 = Vector3<f64>;
 
 /// Wave crossings per substep at which the restitution starts to fade, and where it is gone.
 const FULL_BELOW_CROSSINGS: f64 = 1.0;
 const NONE_ABOVE_CROSSINGS: f64 = 3.0;
-
-/// A body's rigid motion: centre of mass, velocity, angular velocity, and the inverse inertia
-/// about the centre.
-#[derive(Debug, Clone, Copy, Default)]
-struct RigidMotion {
-    com: V3,
-    velocity: V3,
-    spin: V3,
-    inv_inertia: Matrix3<f64>,
-    mass: f64,
-}
-
-impl RigidMotion {
-    fn of(x: &[V3], v: &[V3], m: &[f64], nodes: Range<usize>) -> RigidMotion {
-        let (mut mass, mut com, mut momentum) = (0.0, V3::zeros(), V3::zeros());
-        for i in nodes.clone() {
-            mass += m[i];
-            com += x[i] * m[i];
-            momentum += v[i] * m[i];
-        }
-        if mass <= 0.0 {
-            return RigidMotion::default();
-        }
-        com /= mass;
-        let velocity = momentum / mass;
-        let (mut angular, mut inertia) = (V3::zeros(), Matrix3::zeros());
-        for i in nodes {
-            let r = x[i] - com;
-            angular += r.cross(&(v[i] - velocity)) * m[i];
-            inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m[i];
-        }
-        let inv_inertia = inertia.try_inverse().unwrap_or_else(Matrix3::zeros);
-        RigidMotion {
-            com,
-            velocity,
-            spin: inv_inertia * angular,
-            inv_inertia,
-            mass,
-        }
-    }
-
-    /// Velocity of the body's rigid motion at `p`.
-    fn at(&self, p: &V3) -> V3 {
-        self.velocity + self.spin.cross(&(p - self.com))
-    }
-}
 
 /// A body that may need restitution.
 #[derive(Debug, Clone)]
@@ -81,13 +35,14 @@ struct StiffBody {
     /// Per plane: touched at the end of the last substep.
     touching: Vec<bool>,
     /// Rigid motion at the start of the current substep.
-    before: RigidMotion,
+    before: Option<RigidMotion>,
 }
 
 /// The stiff bodies' impact state (module docs).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Restitution {
     bodies: Vec<StiffBody>,
+    scratch: RigidScratch,
 }
 
 impl Restitution {
@@ -123,11 +78,14 @@ impl Restitution {
                     e,
                     surface,
                     touching: vec![false; planes],
-                    before: RigidMotion::default(),
+                    before: None,
                 })
             })
             .collect();
-        Restitution { bodies }
+        Restitution {
+            bodies,
+            scratch: RigidScratch::default(),
+        }
     }
 
     /// The share of the restitution a body gets at substep `dt`.
@@ -139,12 +97,11 @@ impl Restitution {
 
     /// Records the stiff bodies' rigid motion at the substep's start.
     pub(crate) fn before(&mut self, world: &World, dt: f64) {
-        let n = &world.nodes;
         for s in &mut self.bodies {
-            if Self::weight(s, dt) > 0.0 {
+            s.before = (Self::weight(s, dt) > 0.0).then(|| {
                 let nodes = world.bodies[s.body].nodes.clone();
-                s.before = RigidMotion::of(&n.position, &n.velocity, &n.mass, nodes);
-            }
+                rigid_motion_in(&world.nodes, nodes, &mut self.scratch)
+            });
         }
     }
 
@@ -185,22 +142,19 @@ impl Restitution {
                 if !new_impact {
                     continue;
                 }
+                let Some(before) = &s.before else {
+                    continue;
+                };
                 let contact = sum / count as f64;
                 let n = plane.normal;
-                let approach = s.before.at(&contact).dot(&n);
+                let approach = before.velocity_at(&contact).dot(&n);
                 if approach > -resting {
                     continue;
                 }
-                let nodes_now = &world.nodes;
-                let after = RigidMotion::of(
-                    &nodes_now.position,
-                    &nodes_now.velocity,
-                    &nodes_now.mass,
-                    nodes.clone(),
-                );
+                let after = rigid_motion_in(&world.nodes, nodes.clone(), &mut self.scratch);
                 let target = -s.e * weight * approach;
-                let r = contact - after.com;
-                let now = after.at(&contact).dot(&n);
+                let r = contact - after.centre;
+                let now = after.velocity_at(&contact).dot(&n);
                 if now >= target || after.mass <= 0.0 {
                     continue;
                 }
@@ -211,7 +165,7 @@ impl Restitution {
                 let dw = after.inv_inertia * arm * j;
                 let nodes_mut = &mut world.nodes;
                 for i in nodes.clone() {
-                    let ri = nodes_mut.position[i] - after.com;
+                    let ri = nodes_mut.position[i] - after.centre;
                     nodes_mut.velocity[i] += dv + dw.cross(&ri);
                 }
             }
