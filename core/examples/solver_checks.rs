@@ -59,31 +59,21 @@ fn frame(w: &mut World, f: usize) -> springbake_core::solver::FrameDiagnostics {
 /// Drop a ball of radius 0.1 m from 1 m (its bottom) and report the highest its bottom gets
 /// after the first bounce.
 fn rebound(material: &Material, integrator: Integrator) {
-    let (p, t) = uv_sphere([0.0, 1.1, 0.0], 0.1, 12, 24);
-    let b = body((p, t), 8);
-    let mut w = world(&b, material, integrator, Vector3::zeros(), true);
-    let offset = lowest(&w) - 1.0;
-    let (mut touched, mut peak, mut inverted) = (false, 0.0f64, 0);
+    let mut w = world(
+        &support::rebound_ball(),
+        material,
+        integrator,
+        Vector3::zeros(),
+        true,
+    );
     let t0 = Instant::now();
-    let mut substeps = 0;
-    for f in 1..=72 {
-        let d = frame(&mut w, f);
-        substeps = substeps.max(d.substeps);
-        inverted = inverted.max(d.inverted_cells);
-        let bottom = lowest(&w) - offset;
-        // Bounced once the ball moves up (a frame may miss the instant it touches).
-        let rising = w.nodes.velocity.iter().map(|v| v.y).sum::<f64>() > 0.0;
-        if bottom < 0.02 || rising {
-            touched = true;
-        }
-        if touched {
-            peak = peak.max(bottom);
-        }
-    }
+    let r = support::rebound(&mut w, 72);
     println!(
-        "rebound {:>12}: ball r 0.1 m from 1 m bounces to {peak:.3} m ({} substeps, inverted max {inverted}, {:.1} ms/frame)",
+        "rebound {:>12}: ball r 0.1 m from 1 m bounces to {:.3} m ({} substeps, inverted max {}, {:.1} ms/frame)",
         material.name,
-        substeps,
+        r.peak,
+        r.substeps,
+        r.inverted,
         t0.elapsed().as_secs_f64() * 1e3 / 72.0
     );
 }

@@ -14,7 +14,7 @@ use springbake_core::solver::manipulator::ManipulatorKey;
 use springbake_core::solver::{
     BodyHandle, FrameDiagnostics, Integrator, ManipulatorTrack, Plane, World, WorldSettings,
 };
-use support::{mesh, product_world, spin_kept, Mesh};
+use support::{mesh, product_world, rebound_ball, spin_kept, Mesh};
 
 const FRAME: f64 = 1.0 / 24.0;
 
@@ -27,39 +27,13 @@ fn frame(w: &mut World, f: usize) -> FrameDiagnostics {
     w.advance_frame(FRAME, f, &|| false).unwrap()
 }
 
-fn lowest(w: &World) -> f64 {
-    w.nodes
-        .position
-        .iter()
-        .map(|p| p.y)
-        .fold(f64::INFINITY, f64::min)
-}
-
 /// Highest the bottom of a ball (r 0.1 m) dropped from 1 m gets after its first bounce, and
 /// the most cells inverted in any frame.
 fn rebound(preset: &str) -> (f64, usize) {
-    let ball = mesh(uv_sphere([0.0, 1.1, 0.0], 0.1, 12, 24), 8);
-    let mut w = world(
-        &ball,
-        &Material::preset(preset).unwrap(),
-        Vector3::zeros(),
-        true,
-    );
-    let offset = lowest(&w) - 1.0;
-    let (mut touched, mut peak, mut inverted) = (false, 0.0f64, 0);
-    for f in 1..=40 {
-        inverted = inverted.max(frame(&mut w, f).inverted_cells);
-        let bottom = lowest(&w) - offset;
-        // Bounced once the ball moves up (a frame may miss the instant it touches).
-        let rising = w.nodes.velocity.iter().map(|v| v.y).sum::<f64>() > 0.0;
-        if bottom < 0.02 || rising {
-            touched = true;
-        }
-        if touched {
-            peak = peak.max(bottom);
-        }
-    }
-    (peak, inverted)
+    let material = Material::preset(preset).unwrap();
+    let mut w = world(&rebound_ball(), &material, Vector3::zeros(), true);
+    let r = support::rebound(&mut w, 40);
+    (r.peak, r.inverted)
 }
 
 #[test]

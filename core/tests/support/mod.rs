@@ -135,3 +135,56 @@ pub fn spin_kept(w: &mut World) -> f64 {
     }
     spin(w) / before
 }
+
+/// The rebound check's ball: r 0.1 m, its bottom 1 m above the floor, 8 cells.
+#[allow(dead_code)]
+pub fn rebound_ball() -> Mesh {
+    mesh(
+        springbake_core::shapes::uv_sphere([0.0, 1.1, 0.0], 0.1, 12, 24),
+        8,
+    )
+}
+
+/// What the dropped ball did: the highest its bottom got after the first bounce, the most
+/// cells inverted and substeps in any frame.
+#[allow(dead_code)]
+pub struct Rebound {
+    pub peak: f64,
+    pub inverted: usize,
+    pub substeps: u32,
+}
+
+/// Steps `w` (holding [`rebound_ball`] over a floor) `frames` frames at 24 fps. A bounce counts
+/// from the first frame the ball is near the floor or rising (a frame may miss the instant it
+/// touches).
+#[allow(dead_code)]
+pub fn rebound(w: &mut World, frames: usize) -> Rebound {
+    let lowest = |w: &World| {
+        w.nodes
+            .position
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let offset = lowest(w) - 1.0;
+    let mut out = Rebound {
+        peak: 0.0,
+        inverted: 0,
+        substeps: 0,
+    };
+    let mut touched = false;
+    for f in 1..=frames {
+        let d = w
+            .advance_frame(1.0 / 24.0, f, &|| false)
+            .expect("a dropped ball stays finite");
+        out.inverted = out.inverted.max(d.inverted_cells);
+        out.substeps = out.substeps.max(d.substeps);
+        let bottom = lowest(w) - offset;
+        let rising = w.nodes.velocity.iter().map(|v| v.y).sum::<f64>() > 0.0;
+        touched |= bottom < 0.02 || rising;
+        if touched {
+            out.peak = out.peak.max(bottom);
+        }
+    }
+    out
+}
