@@ -502,6 +502,22 @@ fn drop_weight_channels(b: &mut DocBuilder, nodes: &[usize]) {
     }
 }
 
+/// Whether primitive `p` of mesh `mesh` has its own normals.
+fn has_normal(b: &mut DocBuilder, mesh: usize, p: usize) -> bool {
+    b.array_mut("meshes")[mesh]["primitives"][p]["attributes"]
+        .get("NORMAL")
+        .is_some()
+}
+
+/// Mesh `mesh`, its `extras` made an object (kept when it already is one).
+fn mesh_with_extras(b: &mut DocBuilder, mesh: usize) -> &mut Value {
+    let m = &mut b.array_mut("meshes")[mesh];
+    if !m.get("extras").is_some_and(Value::is_object) {
+        m["extras"] = json!({});
+    }
+    m
+}
+
 fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
@@ -520,9 +536,7 @@ fn add_morph(
     let mut offset = 0;
     for (p, dp) in display.primitives.iter().enumerate() {
         let n = dp.positions.len();
-        let has_normal = b.array_mut("meshes")[mesh]["primitives"][p]["attributes"]
-            .get("NORMAL")
-            .is_some();
+        let has_normal = has_normal(b, mesh, p);
         let rest_normals = vertex_normals(&dp.positions, &dp.indices);
         let mut targets = Vec::with_capacity(frames);
         for frame in &bm.frames {
@@ -548,11 +562,8 @@ fn add_morph(
         offset += n;
     }
     let names: Vec<String> = (0..frames).map(|f| format!("frame_{f:04}")).collect();
-    let m = &mut b.array_mut("meshes")[mesh];
+    let m = mesh_with_extras(b, mesh);
     m["weights"] = json!(vec![0.0; frames]);
-    if !m.get("extras").is_some_and(Value::is_object) {
-        m["extras"] = json!({});
-    }
     m["extras"]["targetNames"] = json!(names);
     let mut one_hot = vec![0.0f32; frames * frames];
     for f in 0..frames {
@@ -637,9 +648,7 @@ impl Pca {
         let mut offset = 0;
         for (p, dp) in display.primitives.iter().enumerate() {
             let range = offset..offset + dp.positions.len();
-            let has_normal = b.array_mut("meshes")[mesh]["primitives"][p]["attributes"]
-                .get("NORMAL")
-                .is_some();
+            let has_normal = has_normal(b, mesh, p);
             let mut targets = Vec::with_capacity(k);
             for (t, nt) in cache.targets.iter().zip(&cache.normal_targets) {
                 let mut target = json!({"POSITION": b.vec3(&vec3s(t, range.clone()), true)});
@@ -653,10 +662,7 @@ impl Pca {
             }
             offset = range.end;
         }
-        let m = &mut b.array_mut("meshes")[mesh];
-        if !m.get("extras").is_some_and(Value::is_object) {
-            m["extras"] = json!({});
-        }
+        let m = mesh_with_extras(b, mesh);
         m["extras"]["springbake_cache"] = json!({
             "kind": "pca",
             "components": cache.components,
