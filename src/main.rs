@@ -61,6 +61,11 @@ enum Command {
         /// SPRINGBAKE_MAX_MEMORY environment variable, else 90 % of the memory available.
         #[arg(long, value_name = "SIZE", value_parser = springbake_pipeline::budget::parse_size)]
         max_memory: Option<u64>,
+        /// How to show progress on stderr: `bar` (a progress bar), `lines` (one
+        /// `progress: frame N/M` line per frame, for a host such as the Blender extension to
+        /// read), `quiet`, or `auto` (the bar on a terminal, else a line every quarter).
+        #[arg(long, value_enum, default_value_t = Progress::Auto)]
+        progress: Progress,
     },
     /// Bake the built-in demo (a soft ball dropped and hit by the manipulator); no files needed.
     Demo {
@@ -189,6 +194,7 @@ fn run(command: Command) -> Result<(), Failure> {
             material,
             report,
             max_memory,
+            progress,
         } => {
             let overrides = MeshOverrides {
                 output,
@@ -198,7 +204,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 material,
             };
             let loaded = load_input(&input, &overrides)?;
-            run_bake(&loaded, report.as_deref(), max_memory)
+            run_bake(&loaded, report.as_deref(), max_memory, progress)
         }
         Command::Demo { output, report } => {
             let dir = tempfile::tempdir().map_err(|e| Failure {
@@ -209,7 +215,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 code: 1,
                 message: e,
             })?;
-            run_bake(&loaded, report.as_deref(), None)
+            run_bake(&loaded, report.as_deref(), None, Progress::Auto)
         }
         Command::Inspect { file, cells, json } => inspect(&file, cells, json),
         Command::Plugins => {
@@ -306,18 +312,33 @@ fn check_report_path(loaded: &LoadedScene, report: &Path) -> Result<(), Failure>
     Ok(())
 }
 
+/// How `bake` reports its progress on stderr.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Progress {
+    /// A bar on a terminal, else a line every quarter of the frames.
+    Auto,
+    /// A progress bar (drawn only on a terminal).
+    Bar,
+    /// One `progress: frame N/M` line per frame.
+    Lines,
+    /// Nothing.
+    Quiet,
+}
+
 fn run_bake(
     loaded: &LoadedScene,
     report: Option<&Path>,
     max_memory: Option<u64>,
+    mode: Progress,
 ) -> Result<(), Failure> {
     if let Some(path) = report {
         check_report_path(loaded, path)?;
     }
     let registry = default_registry();
     let total = loaded.scene.output.frames;
-    let interactive = std::io::stderr().is_terminal();
-    let bar = interactive.then(|| {
+    let terminal = std::io::stderr().is_terminal();
+    let show_bar = matches!(mode, Progress::Bar) || (mode == Progress::Auto && terminal);
+    let bar = show_bar.then(|| {
         let bar = ProgressBar::new(total as u64);
         bar.set_style(
             ProgressStyle::with_template(
@@ -332,7 +353,9 @@ fn run_bake(
     let mut progress = |done: usize, total: usize| {
         if let Some(bar) = &bar {
             bar.set_position(done as u64);
-        } else {
+        } else if mode == Progress::Lines {
+            eprintln!("progress: frame {done}/{total}");
+        } else if mode == Progress::Auto {
             let percent = done * 100 / total.max(1);
             if percent >= last_percent + 25 || done == total {
                 eprintln!("springbake: frame {done}/{total}");
