@@ -50,7 +50,10 @@ fn the_extension_bakes_selected_objects_onto_the_originals_and_frees_them() {
 
     // Suzanne: the bake is a Mesh Cache modifier first in the stack, on the original.
     assert_eq!(r["bake_error"], Value::Null, "{r}");
-    assert_eq!(r["modifiers"][0], serde_json::json!(["springbake", "MESH_CACHE"]));
+    assert_eq!(
+        r["modifiers"][0],
+        serde_json::json!(["springbake", "MESH_CACHE"])
+    );
     assert_eq!(r["modifiers"][1][1], "SUBSURF", "later modifiers stay: {r}");
     for kept in [
         "vertex_count_kept",
@@ -82,7 +85,10 @@ fn the_extension_bakes_selected_objects_onto_the_originals_and_frees_them() {
     assert_eq!(r["rebake_error"], Value::Null, "{r}");
     assert!(r["material_change_moves_m"].as_f64().unwrap() > 0.01, "{r}");
     assert_eq!(r["free"], serde_json::json!(["FINISHED"]));
-    assert!(r["after_free_vs_rest_max_m"].as_f64().unwrap() < 1e-6, "{r}");
+    assert!(
+        r["after_free_vs_rest_max_m"].as_f64().unwrap() < 1e-6,
+        "{r}"
+    );
     assert_eq!(r["modifiers_after_free"], serde_json::json!(["SUBSURF"]));
     // A missing binary is a report naming the cause and where to set it, not a traceback;
     // the previous bake stays.
@@ -118,6 +124,26 @@ fn the_extension_bakes_selected_objects_onto_the_originals_and_frees_them() {
     assert_eq!(cancel["total"], 5000, "{cancel}");
     assert!(cancel["seconds"].as_f64().unwrap() < 5.0, "{cancel}");
     assert_ne!(cancel["returncode"], 0, "{cancel}");
+
+    // The panels name existing settings and operators, the custom material's constants too.
+    let items: Vec<&str> = r["panel_items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    for needed in [
+        "material",
+        "young",
+        "cells",
+        "kind",
+        "floor",
+        "manipulator",
+        "springbake.bake",
+        "springbake.free_bake",
+    ] {
+        assert!(items.contains(&needed), "{needed} not drawn: {items:?}");
+    }
 
     // The animated object drove the capsule through the block.
     assert_eq!(r["manipulator_error"], Value::Null, "{r}");

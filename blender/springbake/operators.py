@@ -21,6 +21,11 @@ from . import cache, properties, runner, scene_writer
 _running_jobs = set()
 
 
+def is_running():
+    """Whether a bake started from this Blender session is still running."""
+    return bool(_running_jobs)
+
+
 def cancel_running_bakes():
     """Stops every bake still running (the add-on is being disabled)."""
     for job in list(_running_jobs):
@@ -78,7 +83,8 @@ class SPRINGBAKE_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.scene is not None and not context.scene.springbake.is_baking
+        # The running jobs, not the scene's flag: a file saved during a bake keeps the flag.
+        return context.scene is not None and not is_running()
 
     def _start(self, context):
         """Writes the scene folder and starts the CLI; False (with a report) when it cannot."""
@@ -211,7 +217,7 @@ class SPRINGBAKE_OT_cancel_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.scene is not None and context.scene.springbake.is_baking
+        return context.scene is not None and is_running()
 
     def execute(self, context):
         context.scene.springbake.cancel_requested = True

@@ -3,6 +3,8 @@
 
 import bpy
 
+from . import operators
+
 
 def draw_object_settings(layout, obj):
     s = obj.springbake
@@ -51,7 +53,7 @@ def draw_scene_settings(layout, context):
 
 def draw_bake_buttons(layout, context):
     s = context.scene.springbake
-    if s.is_baking:
+    if s.is_baking and operators.is_running():
         layout.prop(s, "progress", text="Baking", slider=True)
         layout.operator("springbake.cancel_bake", icon="CANCEL")
         return

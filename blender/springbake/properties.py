@@ -155,10 +155,11 @@ class SpringbakeSceneSettings(bpy.types.PropertyGroup):
         default="",
         subtype="FILE_PATH",
     )
-    # Run state shown by the panels (not saved in a useful way: reset when a bake starts).
-    is_baking: BoolProperty(default=False, options={"SKIP_SAVE"})
-    progress: FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR", options={"SKIP_SAVE"})
-    cancel_requested: BoolProperty(default=False, options={"SKIP_SAVE"})
+    # Run state for the panels and the modal operator (set when a bake starts; the operators
+    # trust their own running jobs, not these, after a file is reopened).
+    is_baking: BoolProperty(default=False)
+    progress: FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
+    cancel_requested: BoolProperty(default=False)
 
 
 class SpringbakePreferences(bpy.types.AddonPreferences):

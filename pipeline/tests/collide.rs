@@ -66,9 +66,11 @@ fn a_cube_dropped_on_an_obj_collider_rests_on_it() {
         .iter()
         .map(|v| v.y)
         .fold(f64::INFINITY, f64::min);
+    // XPBD holds the surface on the collider's face as a constraint (within rounding); the
+    // contact is still logged through the layer's detection.
     assert!(
-        lowest > 0.1 && lowest < 0.1 + h,
-        "resting on the table top (0.1 m) within its layer ({h} m): {lowest} m"
+        lowest > 0.1 - 1e-9 && lowest < 0.1 + h,
+        "resting on the table top (0.1 m), at most its layer ({h} m) above: {lowest} m"
     );
     let log = p.world.frame_contacts();
     assert_eq!(log.len(), 1, "{log:?}");

@@ -64,8 +64,8 @@ def new_scene(frames, unit_scale=1.0):
     return scene
 
 
-# 1. Suzanne above a plane collider (no floor), with a material and a UV layer.
-scene = new_scene(48)
+# 1. Suzanne above a plane collider (no floor), with a material and a UV layer; 3 s.
+scene = new_scene(72)
 scene.springbake.use_floor = False
 bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0, 0, 0))
 plane = bpy.context.object
@@ -95,7 +95,7 @@ scene.frame_set(1)
 first = evaluated_world(suzanne)
 out["frame1_vs_rest_max_m"] = float(np.abs(first - rest).max()) if first.shape == rest.shape else None
 lowest = []
-for f in range(1, 49):
+for f in range(1, 73):
     scene.frame_set(f)
     lowest.append(float(evaluated_world(suzanne)[:, 2].min()))
 out["suzanne_lowest_z"] = lowest
@@ -174,6 +174,44 @@ out["cancel"] = {
     "seconds": time.monotonic() - started,
     "returncode": job.returncode,
 }
+
+# The panels draw (without a window: a stand-in layout that checks every property and
+# operator they name exists).
+panels = sys.modules["bl_ext.user_default.springbake.panels"]
+
+
+class CheckingLayout:
+    def __init__(self, seen):
+        self.seen = seen
+        self.active = True
+        self.use_property_split = False
+        self.scale_y = 1.0
+
+    def prop(self, data, name, **_):
+        assert name in data.bl_rna.properties, f"no property {name} on {data}"
+        self.seen.append(name)
+
+    def operator(self, idname, **_):
+        group, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, group), name), idname
+        self.seen.append(idname)
+
+    def label(self, **_):
+        pass
+
+    def row(self, **_):
+        return self
+
+    column = box = row
+
+
+drawn = []
+panels.draw_object_settings(CheckingLayout(drawn), bodies[0])
+bodies[0].springbake.material = "custom"
+panels.draw_object_settings(CheckingLayout(drawn), bodies[0])
+panels.draw_scene_settings(CheckingLayout(drawn), bpy.context)
+panels.draw_bake_buttons(CheckingLayout(drawn), bpy.context)
+out["panel_items"] = sorted(set(drawn))
 
 # 3. An animated object drives the capsule manipulator: it sweeps through a jelly block
 # resting on the floor and pushes it along +X.

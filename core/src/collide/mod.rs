@@ -129,12 +129,101 @@ impl StaticCollider {
     pub fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])
     }
+
+    /// How a point that moved from `previous` to `x` in one step penetrates this surface, as
+    /// a contact constraint sees it: `(unit face normal, depth)`. A segment that enters a face
+    /// from its front side is a contact with the first face it enters, however deep the point
+    /// went (no tunnelling through a thin collider); otherwise a point lying behind the inside
+    /// of a face, at most `behind` deep, is a contact with the nearest such face. `scratch`
+    /// holds the grid's candidates.
+    pub fn penetration(
+        &mut self,
+        previous: &Vector3<f64>,
+        x: &Vector3<f64>,
+        behind: f64,
+        scratch: &mut Vec<u32>,
+    ) -> Option<(Vector3<f64>, f64)> {
+        let lo = x.inf(previous).add_scalar(-behind);
+        let hi = x.sup(previous).add_scalar(behind);
+        if (0..3).any(|k| hi[k] < self.lo[k] || lo[k] > self.hi[k]) {
+            return None;
+        }
+        self.grid.query(&lo, &hi, scratch);
+        let mut crossing: Option<(f64, Vector3<f64>, f64)> = None;
+        let mut nearest: Option<(Vector3<f64>, f64)> = None;
+        for &t in scratch.iter() {
+            let n = self.normals[t as usize];
+            if n == Vector3::zeros() {
+                continue;
+            }
+            let [a, b, c] = self.corners(t as usize);
+            let depth = -(x - a).dot(&n);
+            if depth <= 0.0 {
+                continue;
+            }
+            if (previous - a).dot(&n) >= 0.0 {
+                if let Some((u, _)) = geometry::segment_crosses_triangle(previous, x, &a, &b, &c) {
+                    if crossing.is_none_or(|(first, _, _)| u < first) {
+                        crossing = Some((u, n, depth));
+                    }
+                    continue;
+                }
+            }
+            if depth < behind
+                && geometry::closest_on_triangle(x, &a, &b, &c).1
+                && nearest.is_none_or(|(_, d)| depth < d)
+            {
+                nearest = Some((n, depth));
+            }
+        }
+        crossing.map(|(_, n, d)| (n, d)).or(nearest)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::shapes::box_mesh;
+
+    #[test]
+    fn a_point_entering_a_face_is_caught_even_through_a_thin_collider() {
+        // A 2 × 2 quad at y = 0, facing +y.
+        let corners = [
+            Point3::new(-1.0, 0.0, -1.0),
+            Point3::new(1.0, 0.0, -1.0),
+            Point3::new(1.0, 0.0, 1.0),
+            Point3::new(-1.0, 0.0, 1.0),
+        ];
+        let mut quad = StaticCollider::new("quad", &corners, &[[0, 2, 1], [0, 3, 2]], 0.4).unwrap();
+        assert!(quad
+            .normals
+            .iter()
+            .all(|n| (n - Vector3::y()).norm() < 1e-12));
+        let mut scratch = Vec::new();
+        let above = Vector3::new(0.2, 0.3, 0.1);
+        // Crossed from the front, 0.5 m deep in one step: depth to the face.
+        let (n, d) = quad
+            .penetration(&above, &Vector3::new(0.2, -0.5, 0.1), 0.05, &mut scratch)
+            .unwrap();
+        assert_eq!((n, d), (Vector3::y(), 0.5));
+        // Still above: no contact; just behind without crossing: within `behind` only.
+        let near = Vector3::new(0.2, -0.01, 0.1);
+        assert!(quad
+            .penetration(&above, &above, 0.05, &mut scratch)
+            .is_none());
+        assert_eq!(
+            quad.penetration(&near, &near, 0.05, &mut scratch)
+                .unwrap()
+                .1,
+            0.01
+        );
+        assert!(quad
+            .penetration(&near, &near, 0.005, &mut scratch)
+            .is_none());
+        // Beside the quad: nothing.
+        let off = Vector3::new(1.5, -0.01, 0.0);
+        assert!(quad.penetration(&off, &off, 0.05, &mut scratch).is_none());
+    }
 
     #[test]
     fn bad_colliders_are_refused_with_their_name() {

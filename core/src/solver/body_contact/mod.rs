@@ -166,10 +166,14 @@ pub struct BodyContact {
     /// [`super::joints`]), as (lower, higher) body index.
     pub(crate) ignored_pairs: Vec<(usize, usize)>,
     meshes: Vec<BodyMesh>,
-    colliders: Vec<StaticCollider>,
+    pub(crate) colliders: Vec<StaticCollider>,
     /// Per node: the contact forces of this step (valid when `active`).
     pub(crate) force: Vec<Vector3<f64>>,
     pub(crate) active: bool,
+    /// Static colliders are contact constraints of the integrator (XPBD with the elastic
+    /// layer model): this pass still detects and logs their contacts (with the force the layer
+    /// would have), but leaves the response to the constraint.
+    pub(crate) collider_constraints: bool,
     step: u64,
     /// Per body: node box, surface point range, mass per unit of share, mesh index.
     boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
@@ -482,7 +486,8 @@ fn respond(
         }
         return;
     }
-    bc.active = true;
+    let push = b.is_some() || !bc.collider_constraints;
+    bc.active |= push;
     // Damper mass per unit of share: the pair's reduced mass (a collider is immovable).
     let mps_a = bc.mass_per_share[a];
     let mps = match b {
@@ -547,8 +552,10 @@ fn respond(
             mass,
             dt,
         );
-        apply(&mut bc.force, &bc.meshes, input.surface, c.a, f);
-        apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
+        if push {
+            apply(&mut bc.force, &bc.meshes, input.surface, c.a, f);
+            apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
+        }
         // f acts on feature a: on the body unless the features are flipped.
         let (f_body, n_body) = if c.flipped {
             (-f, -c.normal)

@@ -5,10 +5,15 @@
 //! normal correction, kinetic beyond: the slip is shortened by μ times it; Macklin et al.
 //! 2019, "Small Steps"). Contact therefore puts no bound on the step, however stiff.
 //!
+//! Static colliders (triangle meshes) are constraints of the same kind for the display-surface
+//! points ([`resolve_colliders`]), with the entering segment tested so a thin collider is
+//! not tunnelled through.
+//!
 //! A node takes the correction directly; a display-surface point (an embedded point, eight
 //! trilinear weights `w_c`) moves its cell's nodes by `w_c m_c⁻¹ δ / W`, `W = Σ w_c² m_c⁻¹`, so
 //! the point itself moves by exactly `δ` and momentum is shared as a rigid contact would.
 
+use crate::collide::StaticCollider;
 use crate::solver::manipulator::Capsule;
 use crate::solver::Plane;
 use nalgebra::Vector3;
@@ -90,6 +95,29 @@ impl Surfaces<'_> {
         }
         out
     }
+}
+
+/// The correction of a display-surface point now at `x` (at `previous` at the substep's
+/// start) that static colliders make: each collider it entered (or lies at most `behind`
+/// behind) moves it back onto the face along the face normal, with the collider's Coulomb
+/// friction on its slip, as the floor does. Returns the correction and the deepest depth.
+pub(crate) fn resolve_colliders(
+    colliders: &mut [StaticCollider],
+    previous: V3,
+    x: V3,
+    behind: f64,
+    scratch: &mut Vec<u32>,
+) -> (V3, f64) {
+    let (mut p, mut deepest) = (x, 0.0f64);
+    for collider in colliders.iter_mut() {
+        if let Some((n, depth)) = collider.penetration(&previous, &p, behind, scratch) {
+            let moved = p + n * depth;
+            let slip = tangential(moved - previous, &n);
+            p = moved - friction(slip, collider.friction * depth);
+            deepest = deepest.max(depth);
+        }
+    }
+    (p - x, deepest)
 }
 
 fn tangential(d: V3, n: &V3) -> V3 {

@@ -3,8 +3,8 @@
 //! a few tens of substeps per frame whatever the material's stiffness.
 //!
 //! A substep, in order (each stage its own pass over structure-of-arrays data):
-//! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the body–body /
-//!    collider contact layer of [`super::body_contact`], integrated implicitly per node,
+//! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the body–body
+//!    contact layer of [`super::body_contact`] (colliders too under `contact = "hertz"`), integrated implicitly per node,
 //!    `Δv = f Δt / (m + k Δt²)`, so a stiff layer cannot destabilise the step; beyond
 //!    [`MAX_SEPARATION_SPEED`] apart its push moves the node without speeding it), `x += Δt v`;
 //! 2. **paths**: pinned and trajectory-bound nodes are put on their targets (strength 1: they
@@ -13,7 +13,8 @@
 //!    the springs of bodies without cells (cages built of springs only) as distance
 //!    constraints with compliance `1/k`;
 //! 4. **rigid contact**: nodes and display-surface points below the floor, the walls or
-//!    inside a capsule are projected out with Coulomb friction ([`contact`]);
+//!    inside a capsule, and display-surface points that entered a static collider, are
+//!    projected out with Coulomb friction ([`contact`]);
 //! 5. **velocity**: `v = (x − x_prev) / Δt`, then the deformation damping towards each body's
 //!    rigid motion ([`super::deformation_damping`]; rigid motion is not damped).
 //!
@@ -35,7 +36,7 @@ use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet};
-use contact::Surfaces;
+use contact::{resolve_colliders, PointContact, Surfaces};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use restitution::Restitution;
@@ -93,6 +94,8 @@ pub(crate) struct Model {
     /// Per display-surface point: the last constraint pass's (force, depth, force from the
     /// capsules), for the contact log.
     point_contact: Vec<(V3, f64, V3)>,
+    /// The static colliders' grid candidates (scratch).
+    collider_scratch: Vec<u32>,
     /// Whether a constraint pass has filled `point_contact` since the model was built.
     logged_once: bool,
     /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
@@ -164,6 +167,7 @@ impl Model {
             capsules: Vec::new(),
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
+            collider_scratch: Vec::new(),
             logged_once: false,
             restitution: Restitution::build(world),
         }
@@ -266,7 +270,10 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         world.xpbd = Some(Model::build(world));
     }
     let mut model = world.xpbd.take().unwrap_or_default();
-    // The contact log and the body–body / collider layer forces, at the substep's start.
+    // The contact log and the body–body layer forces, at the substep's start; static
+    // colliders are constraints of `rigid_contacts` (Hertz's force law stays a force).
+    world.body_contact.collider_constraints =
+        world.body_contact.model == super::body_contact::ContactModel::ElasticLayer;
     log_contacts(world, &model, dt);
     let time = world.time;
     model.restitution.before(world, dt);
@@ -510,7 +517,9 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         capsules: &model.capsules,
     };
     let mut out = StepOutput::default();
-    if surfaces.planes.is_empty() && surfaces.capsules.is_empty() {
+    let bc = &mut world.body_contact;
+    let colliders = bc.collider_constraints && !bc.colliders.is_empty();
+    if surfaces.planes.is_empty() && surfaces.capsules.is_empty() && !colliders {
         return out;
     }
     model.moved.fill(false);
@@ -553,11 +562,14 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     }
     let surface = &world.surface;
     let x = &mut world.nodes.position;
+    let statics = &mut world.body_contact.colliders[..];
+    let behind = world.settings.layer.thickness_m;
     model.logged_once = true;
     for i in 0..surface.len() {
         model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
         let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
-        if surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]) {
+        let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]);
+        if !near_surfaces && !colliders {
             continue;
         }
         let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
@@ -570,22 +582,36 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         if denominator <= 0.0 {
             continue;
         }
-        let c = surfaces.resolve(p, p_prev);
-        if c.depth <= 0.0 {
+        let c = if near_surfaces {
+            surfaces.resolve(p, p_prev)
+        } else {
+            PointContact::default()
+        };
+        let (from_colliders, collider_depth) = if colliders {
+            let after = p + c.correction;
+            resolve_colliders(statics, p_prev, after, behind, &mut model.collider_scratch)
+        } else {
+            (V3::zeros(), 0.0)
+        };
+        if c.depth <= 0.0 && collider_depth <= 0.0 {
             continue;
         }
         out.touched = true;
-        out.max_depth = out.max_depth.max(c.depth);
-        out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
-        out.capsule_work += c.capsule_work * (inv_dt2 / denominator);
-        model.point_contact[i] = (
-            c.correction * (inv_dt2 / denominator),
-            c.depth,
-            c.from_capsules * (inv_dt2 / denominator),
-        );
+        out.max_depth = out.max_depth.max(c.depth).max(collider_depth);
+        if c.depth > 0.0 {
+            out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
+            out.capsule_work += c.capsule_work * (inv_dt2 / denominator);
+            // The log reads the rigid surfaces' part (colliders log through the contact pass).
+            model.point_contact[i] = (
+                c.correction * (inv_dt2 / denominator),
+                c.depth,
+                c.from_capsules * (inv_dt2 / denominator),
+            );
+        }
+        let correction = c.correction + from_colliders;
         for k in 0..8 {
             let n = ids[k] as usize;
-            x[n] += c.correction * (weights[k] * w[n] / denominator);
+            x[n] += correction * (weights[k] * w[n] / denominator);
             model.moved[n] = true;
         }
     }
