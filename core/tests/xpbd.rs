@@ -381,3 +381,37 @@ fn a_body_falling_onto_another_still_bounces() {
         "rose to {rebound} m from {lowest} m"
     );
 }
+
+/// A static collider is a contact constraint like the floor: a ball dropped on a slab
+/// (no floor) rebounds as high as off the floor, rubber by its cells and steel by its
+/// restitution, and rests on the slab's top face, not in it.
+#[test]
+fn a_ball_bounces_off_a_collider_as_off_the_floor() {
+    use springbake_core::collide::StaticCollider;
+    for preset in ["rubber", "steel"] {
+        let (floor, _) = rebound(preset);
+        let material = Material::preset(preset).unwrap();
+        let mut w = world(&rebound_ball(), &material, Vector3::zeros(), false);
+        let (points, triangles) = box_mesh([-1.0, -0.5, -1.0], [1.0, 0.0, 1.0]);
+        let slab = StaticCollider::new("slab", &points, &triangles, 0.4).unwrap();
+        w.add_collider(slab);
+        let r = support::rebound(&mut w, 40);
+        assert!(
+            (r.peak - floor).abs() <= 0.1 * floor,
+            "{preset}: {} m off the collider, {floor} m off the floor",
+            r.peak
+        );
+        assert_eq!(r.inverted, 0);
+        for f in 41..=96 {
+            frame(&mut w, f);
+        }
+        // The display surface rests on the slab (the lattice's corner nodes may hang below
+        // it): the centre of a 0.1 m ball stays about a radius up.
+        let x = &w.nodes.position;
+        let centre = x.iter().map(|p| p.y).sum::<f64>() / x.len() as f64;
+        assert!(
+            (0.085..0.115).contains(&centre),
+            "{preset}: centre {centre} m above the slab"
+        );
+    }
+}

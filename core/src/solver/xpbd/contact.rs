@@ -97,27 +97,43 @@ impl Surfaces<'_> {
     }
 }
 
+/// What static colliders did to one display-surface point in a substep.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct ColliderContact {
+    /// The point's correction, m.
+    pub correction: V3,
+    /// Deepest penetration, m (0: none).
+    pub depth: f64,
+    /// The collider and its face normal of the deepest penetration.
+    pub deepest: Option<(u32, V3)>,
+}
+
 /// The correction of a display-surface point now at `x` (at `previous` at the substep's
 /// start) that static colliders make: each collider it entered (or lies at most `behind`
 /// behind) moves it back onto the face along the face normal, with the collider's Coulomb
-/// friction on its slip, as the floor does. Returns the correction and the deepest depth.
+/// friction on its slip, as the floor does.
 pub(crate) fn resolve_colliders(
     colliders: &mut [StaticCollider],
     previous: V3,
     x: V3,
     behind: f64,
     scratch: &mut Vec<u32>,
-) -> (V3, f64) {
-    let (mut p, mut deepest) = (x, 0.0f64);
-    for collider in colliders.iter_mut() {
+) -> ColliderContact {
+    let mut out = ColliderContact::default();
+    let mut p = x;
+    for (c, collider) in colliders.iter_mut().enumerate() {
         if let Some((n, depth)) = collider.penetration(&previous, &p, behind, scratch) {
             let moved = p + n * depth;
             let slip = tangential(moved - previous, &n);
             p = moved - friction(slip, collider.friction * depth);
-            deepest = deepest.max(depth);
+            if depth > out.depth {
+                out.depth = depth;
+                out.deepest = Some((c as u32, n));
+            }
         }
     }
-    (p - x, deepest)
+    out.correction = p - x;
+    out
 }
 
 fn tangential(d: V3, n: &V3) -> V3 {

@@ -36,7 +36,7 @@ use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet};
-use contact::{resolve_colliders, PointContact, Surfaces};
+use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use restitution::Restitution;
@@ -96,6 +96,9 @@ pub(crate) struct Model {
     point_contact: Vec<(V3, f64, V3)>,
     /// The static colliders' grid candidates (scratch).
     collider_scratch: Vec<u32>,
+    /// Per display-surface point: the collider and face normal it was put back onto in this
+    /// substep (for the restitution of stiff bodies).
+    collider_touch: Vec<Option<(u32, V3)>>,
     /// Whether a constraint pass has filled `point_contact` since the model was built.
     logged_once: bool,
     /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
@@ -168,6 +171,7 @@ impl Model {
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
             collider_scratch: Vec::new(),
+            collider_touch: vec![None; world.surface.len()],
             logged_once: false,
             restitution: Restitution::build(world),
         }
@@ -295,7 +299,9 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     }
     update_velocities(world, &model, dt);
     let touch = RESTITUTION_CONTACT_TOLERANCE * model.shortest_edge;
-    model.restitution.after(world, dt, touch);
+    model
+        .restitution
+        .after(world, dt, touch, &model.collider_touch);
     damp_deformation(world, &mut model, dt);
     world.time += dt;
     world.xpbd = Some(model);
@@ -567,6 +573,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     model.logged_once = true;
     for i in 0..surface.len() {
         model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
+        model.collider_touch[i] = None;
         let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
         let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]);
         if !near_surfaces && !colliders {
@@ -587,17 +594,18 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         } else {
             PointContact::default()
         };
-        let (from_colliders, collider_depth) = if colliders {
+        let held = if colliders {
             let after = p + c.correction;
             resolve_colliders(statics, p_prev, after, behind, &mut model.collider_scratch)
         } else {
-            (V3::zeros(), 0.0)
+            ColliderContact::default()
         };
-        if c.depth <= 0.0 && collider_depth <= 0.0 {
+        if c.depth <= 0.0 && held.depth <= 0.0 {
             continue;
         }
+        model.collider_touch[i] = held.deepest;
         out.touched = true;
-        out.max_depth = out.max_depth.max(c.depth).max(collider_depth);
+        out.max_depth = out.max_depth.max(c.depth).max(held.depth);
         if c.depth > 0.0 {
             out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
             out.capsule_work += c.capsule_work * (inv_dt2 / denominator);
@@ -608,7 +616,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
                 c.from_capsules * (inv_dt2 / denominator),
             );
         }
-        let correction = c.correction + from_colliders;
+        let correction = c.correction + held.correction;
         for k in 0..8 {
             let n = ids[k] as usize;
             x[n] += correction * (weights[k] * w[n] / denominator);

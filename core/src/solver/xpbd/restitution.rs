@@ -4,8 +4,8 @@
 //! the whole body faster than a substep: the contact halts the touching nodes and the stiff
 //! cells pass that halt to every node within the substep, so the energy an elastic body would
 //! store in the impact and give back is never stored. Such a body bounces here as a damped
-//! elastic contact would make it: at the first substep a body touches a plane (floor, walls),
-//! an impulse on its rigid motion at the contact brings the normal velocity there to
+//! elastic contact would make it: at the first substep a body touches a plane (floor, walls) or
+//! a static collider, an impulse on its rigid motion at the contact brings the normal velocity there to
 //! `e` times the approach velocity, with `e = exp(−πζ/√(1−ζ²))` from the material's damping
 //! ratio ζ (the restitution of a damped oscillator's half period). It applies fully when the
 //! wave crosses the body in at most one substep and fades out by three crossings per substep,
@@ -32,7 +32,7 @@ struct StiffBody {
     e: f64,
     /// Its display-surface contact points (indices into `World::surface`).
     surface: Vec<u32>,
-    /// Per plane: touched at the end of the last substep.
+    /// Per plane, then per static collider: touched at the end of the last substep.
     touching: Vec<bool>,
     /// Rigid motion at the start of the current substep.
     before: Option<RigidMotion>,
@@ -49,7 +49,7 @@ impl Restitution {
     /// Every free body with a material whose wave crossing could fit in a substep: lattice or
     /// cage bodies, not rigid or particle kinds, no pinned node.
     pub(crate) fn build(world: &World) -> Restitution {
-        let planes = world.settings.planes.len();
+        let planes = world.settings.planes.len() + world.body_contact.colliders.len();
         let bodies = world
             .bodies
             .iter()
@@ -105,10 +105,19 @@ impl Restitution {
         }
     }
 
-    /// After the velocity update: the impulse of each new impact on a plane (module docs).
-    /// `tolerance` is how close to a plane, m, a point counts as touching it.
-    pub(crate) fn after(&mut self, world: &mut World, dt: f64, tolerance: f64) {
+    /// After the velocity update: the impulse of each new impact on a plane or a collider
+    /// (module docs). `tolerance` is how close to a plane, m, a point counts as touching it;
+    /// `collider_touch` gives, per display-surface point, the collider and face normal the
+    /// contact constraints put it back onto in this substep.
+    pub(crate) fn after(
+        &mut self,
+        world: &mut World,
+        dt: f64,
+        tolerance: f64,
+        collider_touch: &[Option<(u32, V3)>],
+    ) {
         let resting = 2.0 * world.settings.gravity.norm() * dt;
+        let planes = world.settings.planes.len();
         for s in &mut self.bodies {
             let weight = Self::weight(s, dt);
             if weight <= 0.0 {
@@ -117,28 +126,46 @@ impl Restitution {
                 continue;
             }
             let nodes = world.bodies[s.body].nodes.clone();
-            for (p, plane) in world.settings.planes.iter().enumerate() {
-                // The contact: the body's nodes and display-surface points on the plane.
-                let (mut sum, mut count) = (V3::zeros(), 0usize);
+            for slot in 0..s.touching.len() {
+                // The contact: the body's nodes and display-surface points on the surface, and
+                // its normal.
+                let (mut sum, mut count, mut normal) = (V3::zeros(), 0usize, V3::zeros());
                 let x = &world.nodes.position;
-                for i in nodes.clone() {
-                    if plane.normal.dot(&x[i]) - plane.offset <= tolerance {
-                        sum += x[i];
-                        count += 1;
-                    }
-                }
                 let sp = &world.surface;
-                for &k in &s.surface {
+                let point = |k: u32| -> V3 {
                     let (ids, weights) = (&sp.nodes[k as usize], &sp.weights[k as usize]);
-                    let point: V3 = (0..8).map(|c| x[ids[c] as usize] * weights[c]).sum();
-                    if plane.normal.dot(&point) - plane.offset <= tolerance {
-                        sum += point;
-                        count += 1;
+                    (0..8).map(|c| x[ids[c] as usize] * weights[c]).sum()
+                };
+                if let Some(plane) = world.settings.planes.get(slot) {
+                    normal = plane.normal;
+                    for i in nodes.clone() {
+                        if plane.normal.dot(&x[i]) - plane.offset <= tolerance {
+                            sum += x[i];
+                            count += 1;
+                        }
+                    }
+                    for &k in &s.surface {
+                        let p = point(k);
+                        if plane.normal.dot(&p) - plane.offset <= tolerance {
+                            sum += p;
+                            count += 1;
+                        }
+                    }
+                } else {
+                    let collider = (slot - planes) as u32;
+                    for &k in &s.surface {
+                        if let Some(Some((c, n))) = collider_touch.get(k as usize) {
+                            if *c == collider {
+                                sum += point(k);
+                                normal += n;
+                                count += 1;
+                            }
+                        }
                     }
                 }
-                let touching = count > 0;
-                let new_impact = touching && !s.touching[p];
-                s.touching[p] = touching;
+                let touching = count > 0 && normal.norm() > 0.0;
+                let new_impact = touching && !s.touching[slot];
+                s.touching[slot] = touching;
                 if !new_impact {
                     continue;
                 }
@@ -146,7 +173,7 @@ impl Restitution {
                     continue;
                 };
                 let contact = sum / count as f64;
-                let n = plane.normal;
+                let n = normal.normalize();
                 let approach = before.velocity_at(&contact).dot(&n);
                 if approach > -resting {
                     continue;
