@@ -573,7 +573,9 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     model.logged_once = true;
     for i in 0..surface.len() {
         model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
-        model.collider_touch[i] = None;
+        if colliders {
+            model.collider_touch[i] = None;
+        }
         let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
         let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]);
         if !near_surfaces && !colliders {
@@ -603,7 +605,9 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         if c.depth <= 0.0 && held.depth <= 0.0 {
             continue;
         }
-        model.collider_touch[i] = held.deepest;
+        if colliders {
+            model.collider_touch[i] = held.deepest;
+        }
         out.touched = true;
         out.max_depth = out.max_depth.max(c.depth).max(held.depth);
         if c.depth > 0.0 {
