@@ -43,6 +43,30 @@ pub struct SceneFile {
     /// Secondary action: child bodies anchored to a parent through three nodes (eq 4.1).
     #[serde(default)]
     pub attach: Vec<AttachSection>,
+    /// Variations of this scene that `springbake wedge` bakes (a bake ignores it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wedge: Option<WedgeSection>,
+}
+
+/// `[wedge]`: the variations `springbake wedge` bakes, as the cartesian product of their
+/// values (the first varies slowest), before any given with `--vary`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct WedgeSection {
+    #[serde(default)]
+    pub vary: Vec<WedgeVariation>,
+    /// Frames (1-based) each variant shows in the contact sheet; default first, middle, last.
+    #[serde(default)]
+    pub sheet_frames: Vec<usize>,
+}
+
+/// One varied setting: a path into the scene (`body[0].material`, `world.gravity`) and the
+/// values it takes.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WedgeVariation {
+    pub path: String,
+    pub values: Vec<toml::Value>,
 }
 
 /// `[[trajectory]]`: a named path for `follow_trajectory`; key times count from the firing,

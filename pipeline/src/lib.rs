@@ -23,6 +23,7 @@ pub use outputs::write_outputs;
 pub use springbake_core::files as source;
 mod validate;
 pub mod watch;
+pub mod wedge;
 
 pub use frame::SimFrame;
 pub use report::{BodyReport, Report, Seconds};

@@ -6,7 +6,8 @@
 //! Modules: [`camera`] (orbit camera math), [`raster`] (CPU shading, z-buffer rasterizer, PNG),
 //! [`source`] (what a file opens as: simulated scene/mesh or baked glTF playback), [`live`]
 //! (manipulator drag with resistance, real-time step plan), [`oscillator`] (the spring plot),
-//! [`reload`] (watcher thread), and the window itself (private `app`).
+//! [`reload`] (watcher thread), [`sheet`] (contact sheets of several bakes), and the window
+//! itself (private `app`).
 
 mod app;
 pub mod camera;
@@ -14,6 +15,7 @@ pub mod live;
 pub mod oscillator;
 pub mod raster;
 pub mod reload;
+pub mod sheet;
 pub mod source;
 
 use camera::OrbitCamera;
@@ -116,22 +118,9 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     }
     let registry = springbake_pipeline::default_registry();
     let mut source = ViewSource::open(&registry, &args.input)?;
-    if args.frame > source.frame_count() && matches!(source, ViewSource::Baked(_)) {
-        return Err(ViewerError::Usage(format!(
-            "{}: frame {} asked for, the file has {} frames",
-            args.input.display(),
-            args.frame,
-            source.frame_count()
-        )));
-    }
     let camera = initial_camera(&source);
-    let floor = match (source.floor(), source.view_bounds()) {
-        (Some(h), Some((lo, hi))) => raster::floor_meshes(lo, hi, source.up(), h),
-        _ => Vec::new(),
-    };
-    let mut meshes = source.meshes_at(args.frame)?;
-    meshes.extend(floor);
-    let image = raster::render(&meshes, &camera, args.width, args.height);
+    let size = (args.width, args.height);
+    let image = render_frame(&mut source, &args.input, &camera, args.frame, size)?;
     let bytes = image.to_png().map_err(|e| ViewerError::Io {
         path: args.output.clone(),
         message: format!("cannot encode the PNG: {e}"),
@@ -147,6 +136,32 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
         message: format!("cannot write the screenshot: {e}"),
     })?;
     Ok(())
+}
+
+/// Frame `frame` (1-based) of `source` (opened from `input`) seen by `camera`, with its floor,
+/// `width × height` pixels.
+pub fn render_frame(
+    source: &mut ViewSource,
+    input: &std::path::Path,
+    camera: &OrbitCamera,
+    frame: usize,
+    (width, height): (u32, u32),
+) -> Result<raster::Image, ViewerError> {
+    if frame > source.frame_count() && matches!(source, ViewSource::Baked(_)) {
+        return Err(ViewerError::Usage(format!(
+            "{}: frame {} asked for, the file has {} frames",
+            input.display(),
+            frame,
+            source.frame_count()
+        )));
+    }
+    let floor = match (source.floor(), source.view_bounds()) {
+        (Some(h), Some((lo, hi))) => raster::floor_meshes(lo, hi, source.up(), h),
+        _ => Vec::new(),
+    };
+    let mut meshes = source.meshes_at(frame)?;
+    meshes.extend(floor);
+    Ok(raster::render(&meshes, camera, width, height))
 }
 
 /// Open the interactive window on `args.input` and return when it is closed.
