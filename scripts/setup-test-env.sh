@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs the test clients springbake's tests use into ignored folders of this checkout:
-#   .venv/         Python venv with bpy (Blender as a module) and usd-core
+#   .venv/         Python venv with bpy (Blender as a module), usd-core and ray
 #   node_modules/  the Khronos gltf-validator
 # Idempotent: a second run only checks. Needs network access to PyPI and npm.
 set -euo pipefail
@@ -20,6 +20,10 @@ fi
 if ! .venv/bin/python -c 'import bpy' 2>/dev/null; then
   echo "setup: installing bpy==$BPY_VERSION into .venv (about 820 MB)"
   .venv/bin/pip install --quiet --disable-pip-version-check "bpy==$BPY_VERSION"
+fi
+if ! .venv/bin/python -c 'import ray' 2>/dev/null; then
+  echo "setup: installing ray into .venv (springbake wedge --ray tests)"
+  .venv/bin/pip install --quiet --disable-pip-version-check "ray==2.60.0"
 fi
 if [ ! -f node_modules/gltf-validator/package.json ]; then
   echo "setup: installing gltf-validator into node_modules"

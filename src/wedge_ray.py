@@ -21,11 +21,31 @@ import time
 import ray
 
 
+def _die_with_parent():
+    """The bake dies with its Ray worker (a killed worker's task is retried elsewhere)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def bake(task):
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="springbake-wedge-") as out:
         command = [part.replace("{OUT}", out) for part in task["command"]]
-        run = subprocess.run(command, capture_output=True, text=True)
+        linux = sys.platform.startswith("linux")
+        # One core per task (the task reserves num_cpus=1), as `--jobs` gives each bake its share.
+        env = dict(os.environ, RAYON_NUM_THREADS="1")
+        run = subprocess.run(
+            command,
+            capture_output=True,
+            text=True,
+            env=env,
+            preexec_fn=_die_with_parent if linux else None,
+        )
         result = {
             "index": task["index"],
             "ok": run.returncode == 0,
