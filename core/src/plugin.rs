@@ -116,6 +116,21 @@ impl From<crate::scene::CacheSpec> for CacheKind {
 pub struct ExportSettings {
     pub path: PathBuf,
     pub cache: CacheKind,
+    /// Axes of point caches (PC2, MDD).
+    pub axes: PointCacheAxes,
+}
+
+/// The axes a point cache's points are written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PointCacheAxes {
+    /// The local axes Blender's importer gives the source's objects, so the cache plays with
+    /// the Mesh Cache modifier's default axes on Blender's import of the source: a glTF's
+    /// Y-up `(x, y, z)` becomes Blender's `(x, −z, y)`; OBJ and USD points stay as they are
+    /// (Blender keeps their data and turns the object).
+    #[default]
+    Blender,
+    /// The source file's own axes, unchanged (Maya, Houdini and other Y-up importers of glTF).
+    Source,
 }
 
 /// One file an exporter produced. The host writes all of them atomically (temp file + rename).

@@ -109,6 +109,19 @@ pub struct OutputSection {
     /// `cache = "pca"`: the largest vertex error allowed, metres (default 1 mm).
     #[serde(default)]
     pub max_error: Option<f64>,
+    /// Point caches (PC2, MDD): `"blender"` (default: the axes Blender's importer gives the
+    /// source) or `"source"` (the file's own axes).
+    #[serde(default)]
+    pub cache_axes: CacheAxesSpec,
+}
+
+/// `[output] cache_axes`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CacheAxesSpec {
+    #[default]
+    Blender,
+    Source,
 }
 
 fn default_output_path() -> PathBuf {
@@ -129,6 +142,7 @@ impl Default for OutputSection {
             frames: default_frames(),
             cache: CacheSpec::default(),
             max_error: None,
+            cache_axes: CacheAxesSpec::Blender,
         }
     }
 }

@@ -882,6 +882,7 @@ mod tests {
         let settings = ExportSettings {
             path: "out.usd".into(),
             cache: CacheKind::Morph,
+            axes: Default::default(),
         };
         assert!(GltfExporter.export(&scene, &baked, &settings).is_err());
     }

@@ -2,7 +2,10 @@
 //! OBJ object's own vertex list as Blender numbers it, USD `points`, glTF vertices), written
 //! through [`DisplayMesh::to_source_points`], in the mesh's local frame and source units (baked
 //! frames already are). Blender's Mesh Cache modifier with its default axes plays them on the
-//! OBJ Blender imported (see `exporters/tests/pointcache_blender.rs`).
+//! OBJ Blender imported (see `exporters/tests/pointcache_blender.rs`), and on the glTF it
+//! imported: Blender turns a glTF's data to Z-up, so glTF sources' points are written as
+//! `(x, −z, y)` ([`PointCacheAxes::Blender`], the default; `[output] cache_axes = "source"`
+//! keeps the file's Y-up axes for Y-up importers).
 //!
 //! # PC2 (little endian; layout read by Blender's `MOD_meshcache_pc2.cc`)
 //! | offset | type | value |
@@ -36,7 +39,7 @@
 
 use springbake_core::bake::{BakedMesh, BakedScene};
 use springbake_core::display::{DisplayMesh, ImportedScene};
-use springbake_core::plugin::{ExportSettings, Exporter, OutputFile, PluginError};
+use springbake_core::plugin::{ExportSettings, Exporter, OutputFile, PluginError, PointCacheAxes};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -152,7 +155,13 @@ fn export_each(
             )
             .at(format!("baked.meshes[{k}]"))
         })?;
-        let frames = source_point_frames(mesh, bm, k, out_path)?;
+        let mut frames = source_point_frames(mesh, bm, k, out_path)?;
+        if settings.axes == PointCacheAxes::Blender && scene.source.importer == "gltf" {
+            // Blender's glTF importer turns the data Y-up → Z-up: (x, y, z) → (x, −z, y).
+            for p in frames.iter_mut().flatten() {
+                *p = [p[0], -p[2], p[1]];
+            }
+        }
         entries.push((mesh, frames));
     }
     let names = file_names(out_path, entries.iter().map(|(m, _)| *m).collect());

@@ -170,6 +170,7 @@ fn export_to(
     let settings = ExportSettings {
         path: dir.join(name),
         cache,
+        axes: Default::default(),
     };
     let files = GltfExporter
         .export(scene, baked, &settings)
@@ -540,6 +541,7 @@ fn export_is_deterministic() {
             let settings = ExportSettings {
                 path: PathBuf::from(name),
                 cache,
+                axes: Default::default(),
             };
             let a = GltfExporter.export(&scene, &baked, &settings).unwrap();
             let b = GltfExporter.export(&scene, &baked, &settings).unwrap();
@@ -663,6 +665,7 @@ fn bad_bakes_are_refused_with_a_location() {
     let settings = ExportSettings {
         path: PathBuf::from("x.glb"),
         cache: CacheKind::Morph,
+        axes: Default::default(),
     };
     let err = GltfExporter.export(&scene, &baked, &settings).unwrap_err();
     assert_eq!(err.location.as_deref(), Some("baked.meshes[0].frames[3]"));
@@ -671,6 +674,7 @@ fn bad_bakes_are_refused_with_a_location() {
     let settings = ExportSettings {
         path: PathBuf::from("x.glb"),
         cache: CacheKind::Skin,
+        axes: Default::default(),
     };
     let err = GltfExporter.export(&scene, &baked, &settings).unwrap_err();
     assert_eq!(err.location.as_deref(), Some("baked.meshes[0].lattice"));

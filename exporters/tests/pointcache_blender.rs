@@ -124,6 +124,7 @@ fn blender_mesh_cache_plays_pc2_and_mdd_on_its_obj_import() {
             let settings = ExportSettings {
                 path: out,
                 cache: Default::default(),
+                axes: Default::default(),
             };
             let files = exporter.export(&scene, &bake, &settings).unwrap();
             assert_eq!(files.len(), scene.meshes.len());

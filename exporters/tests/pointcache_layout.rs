@@ -24,6 +24,7 @@ fn settings(path: &str) -> ExportSettings {
     ExportSettings {
         path: PathBuf::from(path),
         cache: Default::default(),
+        axes: Default::default(),
     }
 }
 

@@ -308,7 +308,7 @@ pub fn cache_kind(output: &springbake_core::scene::OutputSection) -> CacheKind {
     }
 }
 
-/// Run the exporter for the output's extension.
+/// Run the exporter for the output's extension (point caches in Blender's axes).
 pub fn export(
     registry: &Registry,
     prepared: &Prepared,
@@ -316,6 +316,39 @@ pub fn export(
     output: &Path,
     cache: impl Into<CacheKind>,
 ) -> Result<Vec<OutputFile>, PipelineError> {
+    let settings = ExportSettings {
+        path: output.to_path_buf(),
+        cache: cache.into(),
+        axes: Default::default(),
+    };
+    export_with(registry, prepared, baked, &settings)
+}
+
+/// The export settings `[output]` asks for, writing to `output`.
+pub fn export_settings(
+    section: &springbake_core::scene::OutputSection,
+    output: &Path,
+) -> ExportSettings {
+    use springbake_core::plugin::PointCacheAxes;
+    use springbake_core::scene::CacheAxesSpec;
+    ExportSettings {
+        path: output.to_path_buf(),
+        cache: cache_kind(section),
+        axes: match section.cache_axes {
+            CacheAxesSpec::Blender => PointCacheAxes::Blender,
+            CacheAxesSpec::Source => PointCacheAxes::Source,
+        },
+    }
+}
+
+/// Run the exporter for `settings.path`'s extension.
+pub fn export_with(
+    registry: &Registry,
+    prepared: &Prepared,
+    baked: &springbake_core::bake::BakedScene,
+    settings: &ExportSettings,
+) -> Result<Vec<OutputFile>, PipelineError> {
+    let output = &settings.path;
     let exporter = registry.exporter_for(output).ok_or_else(|| {
         PipelineError::Usage(format!(
             "{}: no exporter for this extension; springbake writes {}",
@@ -323,11 +356,7 @@ pub fn export(
             registry.export_extensions().join(", ")
         ))
     })?;
-    let settings = ExportSettings {
-        path: output.to_path_buf(),
-        cache: cache.into(),
-    };
-    Ok(exporter.export(&prepared.export_scene, baked, &settings)?)
+    Ok(exporter.export(&prepared.export_scene, baked, settings)?)
 }
 
 /// Hooks a host passes to a bake: cancellation (polled every frame), progress, and the
@@ -378,13 +407,8 @@ pub fn bake(
     let (baked, frames) = prepared.simulate(&loaded.scene, hooks)?;
     seconds.simulate = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let files = export(
-        registry,
-        &prepared,
-        &baked,
-        &output,
-        cache_kind(&loaded.scene.output),
-    )?;
+    let settings = export_settings(&loaded.scene.output, &output);
+    let files = export_with(registry, &prepared, &baked, &settings)?;
     write_outputs(&files, &loaded.inputs())?;
     seconds.export = t2.elapsed().as_secs_f64();
     Ok(BakeOutcome {

@@ -165,7 +165,7 @@ pub fn floor(scene: &SceneFile) -> Result<(), String> {
     }
 }
 
-/// `output.cache` and `output.max_error` against the output's format.
+/// `output.cache`, `output.cache_axes` and `output.max_error` against the output's format.
 fn cache(o: &springbake_core::scene::OutputSection) -> Result<(), String> {
     use springbake_core::scene::CacheSpec;
     let gltf = o
@@ -183,6 +183,14 @@ fn cache(o: &springbake_core::scene::OutputSection) -> Result<(), String> {
             "output.cache = \"{name}\" is for glTF outputs (.glb, .gltf), not {}",
             o.path.display()
         ));
+    }
+    let point_cache = o
+        .path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("pc2") || e.eq_ignore_ascii_case("mdd"));
+    if o.cache_axes != springbake_core::scene::CacheAxesSpec::Blender && !point_cache {
+        return Err("output.cache_axes: only for point caches (.pc2, .mdd outputs)".into());
     }
     if let Some(m) = o.max_error {
         if o.cache != CacheSpec::Pca {

@@ -60,6 +60,7 @@ fn export(scene: &ImportedScene, baked: &BakedScene, out: &Path) {
             &ExportSettings {
                 path: out.to_path_buf(),
                 cache: CacheKind::Morph,
+                axes: Default::default(),
             },
         )
         .unwrap();
@@ -260,6 +261,7 @@ fn bad_bakes_are_rejected_before_writing() {
     let settings = ExportSettings {
         path: PathBuf::from("x.usda"),
         cache: CacheKind::Morph,
+        axes: Default::default(),
     };
     let err = UsdExporter.export(&scene, &baked, &settings).unwrap_err();
     assert_eq!(err.kind, IoErrorKind::Invalid);
@@ -274,6 +276,7 @@ fn bad_bakes_are_rejected_before_writing() {
     let usdz = ExportSettings {
         path: PathBuf::from("x.usdz"),
         cache: CacheKind::Morph,
+        axes: Default::default(),
     };
     assert!(UsdExporter.export(&scene, &baked, &usdz).is_err());
 }
