@@ -430,10 +430,18 @@ fn run_bake(
             }
         }
     };
+    let mut note = |text: &str| {
+        if let Some(bar) = &bar {
+            bar.suspend(|| eprintln!("springbake: note: {text}"));
+        } else {
+            eprintln!("springbake: note: {text}");
+        }
+    };
     let mut hooks = BakeHooks {
         cancelled: None,
         max_memory,
         progress: Some(&mut progress),
+        note: Some(&mut note),
     };
     let outcome = bake(&registry, loaded, &mut hooks);
     if let Some(bar) = &bar {

@@ -171,3 +171,67 @@ fn usage_errors_exit_2() {
         stderr(&o)
     );
 }
+
+/// A bake whose output will be large says so before it starts, with its size and what makes
+/// it smaller (the memory limit then stops this one before any step, keeping the test fast).
+#[test]
+fn a_large_output_is_announced_with_its_size_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 200;
+    let mut obj = String::from("o grid\n");
+    for j in 0..=n {
+        for i in 0..=n {
+            obj += &format!(
+                "v {} {} {}\n",
+                i as f64 / n as f64,
+                0.5,
+                j as f64 / n as f64
+            );
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i + 1;
+            obj += &format!("f {a} {} {} {}\n", a + 1, a + n + 2, a + n + 1);
+        }
+    }
+    let grid = dir.path().join("grid.obj");
+    std::fs::write(&grid, obj).unwrap();
+    let out = dir.path().join("grid.glb");
+    let o = springbake(&[
+        "bake",
+        grid.to_str().unwrap(),
+        "--frames",
+        "120",
+        "--cells",
+        "4",
+        "--max-memory",
+        "50M",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    // 40 401 vertices × 120 frames of morph targets: 117.9 MB when baked.
+    assert!(
+        err.contains("the output will be about 123 MB (40401 vertices × 120 frames)")
+            && err.contains("cache = \"pca\""),
+        "{err}"
+    );
+    let small = springbake(&[
+        "bake",
+        grid.to_str().unwrap(),
+        "--frames",
+        "2",
+        "--cells",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(small.status.success(), "{}", stderr(&small));
+    assert!(
+        !stderr(&small).contains("will be about"),
+        "{}",
+        stderr(&small)
+    );
+}

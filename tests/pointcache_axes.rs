@@ -21,7 +21,11 @@ fn bake(dir: &Path, output: &str, axes: Option<&str>) {
         .args(["bake", file.to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 fn worst(dir: &Path, prefix: &str) -> serde_json::Value {
@@ -30,7 +34,11 @@ fn worst(dir: &Path, prefix: &str) -> serde_json::Value {
         "pointcache_gltf_blender.py",
         &[&p("two_objects.glb"), &p("morph.glb"), &p(prefix), "24"],
     ));
-    assert_eq!(report["objects"], serde_json::json!(["Body", "Head"]), "{report}");
+    assert_eq!(
+        report["objects"],
+        serde_json::json!(["Body", "Head"]),
+        "{report}"
+    );
     report["worst"].clone()
 }
 
@@ -48,7 +56,10 @@ fn a_pc2_baked_from_a_gltf_lines_up_on_blenders_import_of_it() {
     bake(d, "source.pc2", Some("source"));
     for (name, err) in worst(d, "blender").as_object().unwrap() {
         let err = err.as_f64().unwrap();
-        assert!(err < 1e-5, "{name}: the PC2 is {err} m off Blender's import of the bake");
+        assert!(
+            err < 1e-5,
+            "{name}: the PC2 is {err} m off Blender's import of the bake"
+        );
     }
     let off = worst(d, "source");
     let largest = off
@@ -57,5 +68,8 @@ fn a_pc2_baked_from_a_gltf_lines_up_on_blenders_import_of_it() {
         .values()
         .map(|e| e.as_f64().unwrap())
         .fold(0.0, f64::max);
-    assert!(largest > 0.1, "source axes should not line up in Blender: {off}");
+    assert!(
+        largest > 0.1,
+        "source axes should not line up in Blender: {off}"
+    );
 }

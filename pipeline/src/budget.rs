@@ -123,6 +123,60 @@ pub fn estimate_memory(prepared: &Prepared, scene: &SceneFile, output: &Path) ->
     (total, what)
 }
 
+/// Outputs larger than this get a note before the bake starts.
+pub const LARGE_OUTPUT_BYTES: u64 = 100 << 20;
+
+/// Bytes on disk per display vertex and output frame, by format (measured: a glTF morph
+/// target holds a position and a normal delta, 24 bytes, 25.3 with the accessors on a 960
+/// vertex icosphere over 120 frames; a point cache 12; USD crate files about 24, text 60).
+/// `None` where the size does not grow that way (the skin and compact caches).
+fn disk_bytes_per_vertex_frame(scene: &SceneFile, output: &Path) -> Option<f64> {
+    use springbake_core::scene::CacheSpec;
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "pc2" | "mdd" => Some(12.0),
+        "usda" => Some(60.0),
+        "usdc" | "usd" | "usdz" => Some(24.0),
+        _ if scene.output.cache == CacheSpec::Morph => Some(25.3),
+        _ => None,
+    }
+}
+
+/// A note for bakes whose output will be over [`LARGE_OUTPUT_BYTES`]: its expected size,
+/// what makes it, and what makes it smaller.
+pub fn large_output_note(prepared: &Prepared, scene: &SceneFile, output: &Path) -> Option<String> {
+    let per = disk_bytes_per_vertex_frame(scene, output)?;
+    let vertices: u64 = prepared
+        .bodies
+        .iter()
+        .filter_map(|b| prepared.export_scene.meshes.get(b.mesh_index))
+        .map(|m| m.vertex_count() as u64)
+        .sum();
+    let frames = scene.output.frames as u64;
+    let bytes = (vertices * frames) as f64 * per;
+    if bytes < LARGE_OUTPUT_BYTES as f64 {
+        return None;
+    }
+    let gltf = matches!(
+        output.extension().and_then(|e| e.to_str()),
+        Some("glb" | "gltf")
+    );
+    let smaller = if gltf {
+        "[output] cache = \"pca\" (the motion's principal components) or \"skin\" (the lattice as joints), or fewer frames"
+    } else {
+        "a glTF with [output] cache = \"pca\" or \"skin\", or fewer frames"
+    };
+    Some(format!(
+        "{}: the output will be about {:.0} MB ({vertices} vertices × {frames} frames); {smaller} make it smaller",
+        output.display(),
+        bytes / 1e6
+    ))
+}
+
 /// Refuses a bake whose estimated memory is over `limit` bytes.
 pub fn check_memory(
     prepared: &Prepared,

@@ -368,6 +368,8 @@ pub struct BakeHooks<'a> {
     pub max_memory: Option<u64>,
     /// Called after each frame with (frames done, frames total).
     pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
+    /// Called before the first step with notes for the user (a large output's expected size).
+    pub note: Option<&'a mut dyn FnMut(&str)>,
 }
 
 /// The outcome of a bake: the report and the files written.
@@ -396,6 +398,12 @@ pub fn bake(
     outputs::check_writable(&output, "output")?;
     let mut seconds = Seconds::default();
     let mut prepared = prepare(registry, loaded, &mut seconds)?;
+    if let (Some(note), Some(text)) = (
+        hooks.note.as_mut(),
+        budget::large_output_note(&prepared, &loaded.scene, &output),
+    ) {
+        note(&text);
+    }
     budget::check_memory(
         &prepared,
         &loaded.scene,
