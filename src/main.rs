@@ -150,13 +150,43 @@ enum Command {
         /// Render this frame with the software rasterizer to a PNG and exit (no window, no GPU).
         #[arg(long, value_name = "OUT.png")]
         screenshot: Option<PathBuf>,
+        /// Render the frames (all, or --frames) offscreen to an animated GIF, or to an
+        /// MP4/WebM through ffmpeg when it is installed, and exit.
+        #[arg(long, value_name = "OUT.gif")]
+        flipbook: Option<PathBuf>,
+        /// Render a contact sheet PNG of --count frames spread over the file (or --frames).
+        #[arg(long, value_name = "OUT.png")]
+        sheet: Option<PathBuf>,
+        /// Frames for --flipbook and --sheet: A..B (1-based, inclusive).
+        #[arg(long, value_name = "A..B", value_parser = parse_frames)]
+        frames: Option<std::ops::RangeInclusive<usize>>,
+        /// Frames on a --sheet.
+        #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=64))]
+        count: u32,
         /// Frame to show (1 = the initial state).
         #[arg(long, default_value_t = 1)]
         frame: usize,
-        /// Screenshot size in pixels, WIDTHxHEIGHT.
-        #[arg(long, default_value = "800x600", value_parser = parse_size)]
-        size: (u32, u32),
+        /// Image size in pixels, WIDTHxHEIGHT (default 800x600; 480x360 for a flipbook, 320x240
+        /// per frame of a sheet).
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
     },
+}
+
+/// `A..B` or `A` for `view --frames`.
+fn parse_frames(s: &str) -> Result<std::ops::RangeInclusive<usize>, String> {
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .map_err(|e| format!("\"{v}\": {e} (write A..B, e.g. 1..48)"))
+    };
+    match s.split_once("..") {
+        Some((a, b)) => Ok(parse(a)?..=parse(b.trim_start_matches('='))?),
+        None => {
+            let a = parse(s)?;
+            Ok(a..=a)
+        }
+    }
 }
 
 /// `WIDTHxHEIGHT` for `view --size`.
@@ -257,7 +287,29 @@ fn run(command: Command) -> Result<(), Failure> {
                 code: 1,
                 message: e,
             })?;
-            run_bake(&loaded, report.as_deref(), None, Progress::Auto)
+            run_bake(&loaded, report.as_deref(), None, Progress::Auto)?;
+            // A look at it without opening anything: a flipbook beside the bake.
+            let gif = output.with_extension("gif");
+            let started = std::time::Instant::now();
+            springbake_viewer::flipbook::write_flipbook(
+                &springbake_viewer::flipbook::FlipbookArgs {
+                    input: output.clone(),
+                    output: gif.clone(),
+                    frames: None,
+                    width: 480,
+                    height: 360,
+                },
+            )
+            .map_err(|e| Failure {
+                code: 1,
+                message: format!("the demo's flipbook: {e}"),
+            })?;
+            println!(
+                "flipbook in {:.1} s: {} (open it in a browser or an image viewer)",
+                started.elapsed().as_secs_f64(),
+                gif.display()
+            );
+            Ok(())
         }
         Command::Wedge {
             scene,
@@ -305,30 +357,89 @@ fn run(command: Command) -> Result<(), Failure> {
         Command::View {
             file,
             screenshot,
+            flipbook,
+            sheet,
+            frames,
+            count,
             frame,
             size,
-        } => {
-            let result = match screenshot {
-                Some(output) => {
-                    springbake_viewer::render_screenshot(&springbake_viewer::ScreenshotArgs {
-                        input: file,
-                        frame,
-                        output,
-                        width: size.0,
-                        height: size.1,
-                    })
-                }
-                None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs {
-                    input: file,
-                    frame,
-                }),
-            };
-            result.map_err(|e| Failure {
-                code: if e.is_user_error() { 2 } else { 1 },
-                message: e.to_string(),
-            })
-        }
+        } => view(
+            file,
+            screenshot,
+            flipbook,
+            sheet,
+            frames,
+            count as usize,
+            frame,
+            size,
+        ),
     }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn view(
+    file: PathBuf,
+    screenshot: Option<PathBuf>,
+    flipbook: Option<PathBuf>,
+    sheet: Option<PathBuf>,
+    frames: Option<std::ops::RangeInclusive<usize>>,
+    count: usize,
+    frame: usize,
+    size: Option<(u32, u32)>,
+) -> Result<(), Failure> {
+    use springbake_viewer::flipbook;
+    let failure = |e: springbake_viewer::ViewerError| Failure {
+        code: if e.is_user_error() { 2 } else { 1 },
+        message: e.to_string(),
+    };
+    if let Some(output) = &flipbook {
+        let (width, height) = size.unwrap_or((480, 360));
+        let started = std::time::Instant::now();
+        let n = flipbook::write_flipbook(&flipbook::FlipbookArgs {
+            input: file.clone(),
+            output: output.clone(),
+            frames: frames.clone(),
+            width,
+            height,
+        })
+        .map_err(failure)?;
+        println!(
+            "flipbook of {n} frames in {:.1} s: {}",
+            started.elapsed().as_secs_f64(),
+            output.display()
+        );
+    }
+    if let Some(output) = &sheet {
+        flipbook::write_sheet(&file, output, &frames, count, size.unwrap_or((320, 240)))
+            .map_err(failure)?;
+        println!("contact sheet: {}", output.display());
+    }
+    if flipbook.is_some() || sheet.is_some() {
+        return screenshot.map_or(Ok(()), |output| {
+            shoot(file, frame, output, size).map_err(failure)
+        });
+    }
+    match screenshot {
+        Some(output) => shoot(file, frame, output, size),
+        None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs { input: file, frame }),
+    }
+    .map_err(failure)
+}
+
+fn shoot(
+    input: PathBuf,
+    frame: usize,
+    output: PathBuf,
+    size: Option<(u32, u32)>,
+) -> Result<(), springbake_viewer::ViewerError> {
+    let (width, height) = size.unwrap_or((800, 600));
+    springbake_viewer::render_screenshot(&springbake_viewer::ScreenshotArgs {
+        input,
+        frame,
+        output,
+        width,
+        height,
+    })
 }
 
 fn is_scene(path: &Path) -> bool {

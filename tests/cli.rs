@@ -235,3 +235,88 @@ fn a_large_output_is_announced_with_its_size_before_the_bake() {
         stderr(&small)
     );
 }
+
+/// `demo` writes a flipbook beside its bake; `view` renders flipbooks and contact sheets of a
+/// bake offscreen; a video needs ffmpeg and says so when it is missing.
+#[test]
+fn the_demo_and_view_write_flipbooks_and_sheets() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("demo.glb");
+    let o = springbake(&["demo", "-o", glb.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let gif_path = dir.path().join("demo.gif");
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(&*gif_path.to_string_lossy()),
+        "the demo says where its flipbook is"
+    );
+    let count_frames = |path: &std::path::Path| {
+        let bytes = std::fs::read(path).unwrap();
+        let mut decoder = gif::DecodeOptions::new().read_info(&bytes[..]).unwrap();
+        let mut n = 0;
+        while let Some(frame) = decoder.read_next_frame().unwrap() {
+            assert_eq!((frame.width, frame.height), (480, 360));
+            n += 1;
+        }
+        n
+    };
+    assert_eq!(count_frames(&gif_path), 72);
+
+    let part = dir.path().join("part.gif");
+    let sheet = dir.path().join("sheet.png");
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--flipbook",
+        part.to_str().unwrap(),
+        "--frames",
+        "10..19",
+        "--sheet",
+        sheet.to_str().unwrap(),
+        "--count",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(count_frames(&part), 10);
+    let decoder = png::Decoder::new(std::io::Cursor::new(std::fs::read(&sheet).unwrap()));
+    let info = decoder.read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (4 * 320, 240 + 22));
+
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--flipbook",
+        part.to_str().unwrap(),
+        "--frames",
+        "70..80",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the file has frames 1..72"),
+        "{}",
+        stderr(&o)
+    );
+
+    let mp4 = dir.path().join("demo.mp4");
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--flipbook",
+        mp4.to_str().unwrap(),
+    ]);
+    let has_ffmpeg = std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok();
+    if has_ffmpeg {
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(std::fs::metadata(&mp4).unwrap().len() > 1000);
+    } else {
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("needs ffmpeg on PATH"),
+            "{}",
+            stderr(&o)
+        );
+        assert!(!mp4.exists());
+    }
+}

@@ -6,11 +6,12 @@
 //! Modules: [`camera`] (orbit camera math), [`raster`] (CPU shading, z-buffer rasterizer, PNG),
 //! [`source`] (what a file opens as: simulated scene/mesh or baked glTF playback), [`live`]
 //! (manipulator drag with resistance, real-time step plan), [`oscillator`] (the spring plot),
-//! [`reload`] (watcher thread), [`sheet`] (contact sheets of several bakes), and the window
-//! itself (private `app`).
+//! [`reload`] (watcher thread), [`sheet`] (contact sheets of several bakes), [`flipbook`]
+//! (animated GIF/MP4 and one file's contact sheet), and the window itself (private `app`).
 
 mod app;
 pub mod camera;
+pub mod flipbook;
 pub mod live;
 pub mod oscillator;
 pub mod raster;
