@@ -143,16 +143,30 @@ def _primvar_data(primvar, time, location):
     return {"interpolation": str(primvar.GetInterpolation()), "values": _flat(values, "f")}
 
 
+_UV_TYPES = ("texCoord2f[]", "texCoord2d[]", "texCoord2h[]")
+
+
 def read_stage(path, root):
     _check_layer_tree(path, root)
     stage = _open(path)
     _check_used_layers(stage, root)
     time = Usd.TimeCode.Default()
     meshes = []
+    hidden = []
     for prim in stage.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
         location = str(prim.GetPath())
+        # What a renderer would not draw is not simulated: invisible prims (their own
+        # visibility or an ancestor's) and proxy or guide geometry.
+        imageable = UsdGeom.Imageable(prim)
+        purpose = imageable.ComputePurpose()
+        if imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+            hidden.append(location + " (invisible)")
+            continue
+        if purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
+            hidden.append("%s (purpose %s)" % (location, purpose))
+            continue
         mesh = UsdGeom.Mesh(prim)
         points = _value(mesh.GetPointsAttr(), time)
         counts = _value(mesh.GetFaceVertexCountsAttr(), time)
@@ -184,6 +198,14 @@ def read_stage(path, root):
             if pv and pv.HasAuthoredValue():
                 st = _primvar_data(pv, time, location + ".primvars:" + name)
                 break
+        if st is None:
+            # Any other texture-coordinate primvar (texCoord2f[], e.g. st_faceVarying), the
+            # first in name order.
+            for pv in sorted(primvars.GetPrimvars(), key=lambda p: p.GetPrimvarName()):
+                if str(pv.GetTypeName()) in _UV_TYPES and pv.HasAuthoredValue():
+                    name = str(pv.GetPrimvarName())
+                    st = _primvar_data(pv, time, location + ".primvars:" + name)
+                    break
         material = None
         try:
             bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
@@ -207,6 +229,12 @@ def read_stage(path, root):
                 # Gf matrices are row-major with row vectors (p' = p * M).
                 "world": array.array("d", [world[i][j] for i in range(4) for j in range(4)]).tobytes(),
             }
+        )
+    if not meshes and hidden:
+        raise BridgeError(
+            "every UsdGeomMesh is invisible or proxy/guide geometry, so there is nothing to "
+            "simulate: " + ", ".join(hidden[:5]) + (" …" if len(hidden) > 5 else ""),
+            str(path),
         )
     return {
         "up_axis": str(UsdGeom.GetStageUpAxis(stage)),

@@ -305,3 +305,48 @@ fn layers_outside_the_allowed_folder_are_refused_before_they_are_read() {
         assert!(err.contains("outside the folder"), "{err}");
     }
 }
+
+/// What a renderer does not draw is not simulated (invisible prims, their children, proxy and
+/// guide purpose), and UVs come from any texCoord2f[] primvar when there is no `st`.
+#[test]
+fn invisible_and_guide_meshes_are_left_out_and_any_texcoord_primvar_is_the_uvs() {
+    let quad = |name: &str, extra: &str| {
+        format!(
+            "    def Mesh \"{name}\" {{\n{extra}\
+             \x20       int[] faceVertexCounts = [4]\n\
+             \x20       int[] faceVertexIndices = [0, 1, 2, 3]\n\
+             \x20       point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]\n    }}\n"
+        )
+    };
+    let uvs = "        texCoord2f[] primvars:st_faceVarying = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n\
+               \x20           interpolation = \"faceVarying\"\n        )\n";
+    let text = format!(
+        "#usda 1.0\n(\n    upAxis = \"Y\"\n)\ndef Xform \"World\" {{\n{}{}{}\
+         \x20   def Xform \"Off\" {{\n        token visibility = \"invisible\"\n{}    }}\n}}\n",
+        quad("Shown", uvs),
+        quad("Hidden", "        token visibility = \"invisible\"\n"),
+        quad("Guide", "        uniform token purpose = \"guide\"\n"),
+        quad("Child", ""),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("layers.usda");
+    std::fs::write(&path, &text).unwrap();
+    let scene = import(&path).unwrap();
+    let names: Vec<&str> = scene.meshes.iter().map(|m| m.source_key.as_str()).collect();
+    assert_eq!(names, ["/World/Shown"], "{text}");
+    let uv = scene.meshes[0].primitives[0]
+        .uvs
+        .as_ref()
+        .expect("UVs from st_faceVarying");
+    assert_eq!(uv.len(), scene.meshes[0].vertex_count());
+
+    // Nothing visible at all: an error that says why.
+    let only_hidden = text.replace(
+        "def Mesh \"Shown\" {\n",
+        "def Mesh \"Shown\" {\n        token visibility = \"invisible\"\n",
+    );
+    std::fs::write(&path, only_hidden).unwrap();
+    let err = import(&path).unwrap_err().to_string();
+    assert!(err.contains("every UsdGeomMesh is invisible"), "{err}");
+    assert!(err.contains("/World/Guide (purpose guide)"), "{err}");
+}
