@@ -166,6 +166,10 @@ enum Command {
         /// Frame to show (1 = the initial state).
         #[arg(long, default_value_t = 1)]
         frame: usize,
+        /// A --screenshot frames the whole motion (as a flipbook does), not the bodies at
+        /// --frame.
+        #[arg(long)]
+        frame_all: bool,
         /// Image size in pixels, WIDTHxHEIGHT (default 800x600; 480x360 for a flipbook, 320x240
         /// per frame of a sheet).
         #[arg(long, value_parser = parse_size)]
@@ -362,6 +366,7 @@ fn run(command: Command) -> Result<(), Failure> {
             frames,
             count,
             frame,
+            frame_all,
             size,
         } => view(
             file,
@@ -370,7 +375,7 @@ fn run(command: Command) -> Result<(), Failure> {
             sheet,
             frames,
             count as usize,
-            frame,
+            (frame, frame_all),
             size,
         ),
     }
@@ -384,7 +389,7 @@ fn view(
     sheet: Option<PathBuf>,
     frames: Option<std::ops::RangeInclusive<usize>>,
     count: usize,
-    frame: usize,
+    frame: (usize, bool),
     size: Option<(u32, u32)>,
 ) -> Result<(), Failure> {
     use springbake_viewer::flipbook;
@@ -421,14 +426,17 @@ fn view(
     }
     match screenshot {
         Some(output) => shoot(file, frame, output, size),
-        None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs { input: file, frame }),
+        None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs {
+            input: file,
+            frame: frame.0,
+        }),
     }
     .map_err(failure)
 }
 
 fn shoot(
     input: PathBuf,
-    frame: usize,
+    (frame, frame_all): (usize, bool),
     output: PathBuf,
     size: Option<(u32, u32)>,
 ) -> Result<(), springbake_viewer::ViewerError> {
@@ -439,6 +447,7 @@ fn shoot(
         output,
         width,
         height,
+        frame_all,
     })
 }
 

@@ -320,3 +320,81 @@ fn the_demo_and_view_write_flipbooks_and_sheets() {
         assert!(!mp4.exists());
     }
 }
+
+/// The demo at frame 30, as `springbake view --screenshot` draws it (issue 21's check): the
+/// camera frames the ball at that frame, so it covers at least 5 % of the picture; the floor
+/// grid and the capsule recorded in the glb are drawn. Compared with the stored reference
+/// (`tests/reference/demo_frame30.png`): at most 2 % of the pixels may differ by more than 24
+/// levels. `SPRINGBAKE_UPDATE_REFERENCE=1` rewrites the reference after a deliberate change.
+#[test]
+fn the_demo_screenshot_shows_the_ball_large_with_the_floor_and_the_capsule() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("demo.glb");
+    assert!(springbake(&["demo", "-o", glb.to_str().unwrap()])
+        .status
+        .success());
+    let png_path = dir.path().join("f30.png");
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--screenshot",
+        png_path.to_str().unwrap(),
+        "--frame",
+        "30",
+        "--size",
+        "320x240",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let decode = |bytes: Vec<u8>| {
+        let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        buf.truncate(info.buffer_size());
+        (info.width, info.height, buf)
+    };
+    let shot = std::fs::read(&png_path).unwrap();
+    let (w, h, rgba) = decode(shot.clone());
+    assert_eq!((w, h), (320, 240));
+    let pixels: Vec<[i32; 3]> = rgba
+        .chunks(4)
+        .map(|p| [p[0] as i32, p[1] as i32, p[2] as i32])
+        .collect();
+    let share = |f: &dyn Fn(&[i32; 3]) -> bool| {
+        pixels.iter().filter(|p| f(p)).count() as f64 / pixels.len() as f64
+    };
+    let ball = share(&|p| p[0] > p[2] + 60);
+    let capsule = share(&|p| p[2] > p[0] + 60);
+    let grid = share(&|p| (p[0] - p[2]).abs() < 20 && p[0] > 60 && p[0] < 110);
+    assert!(
+        ball >= 0.05,
+        "the ball covers {:.1} % of the picture",
+        ball * 100.0
+    );
+    assert!(capsule > 0.002, "the capsule: {:.2} %", capsule * 100.0);
+    assert!(grid > 0.002, "the floor grid: {:.2} %", grid * 100.0);
+
+    let reference = springbake_testkit::workspace_root().join("tests/reference/demo_frame30.png");
+    if std::env::var_os("SPRINGBAKE_UPDATE_REFERENCE").is_some() {
+        std::fs::write(&reference, &shot).unwrap();
+    }
+    let want = std::fs::read(&reference).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e} (SPRINGBAKE_UPDATE_REFERENCE=1 writes it)",
+            reference.display()
+        )
+    });
+    let (rw, rh, ref_rgba) = decode(want);
+    assert_eq!((rw, rh), (w, h));
+    let differing = rgba
+        .chunks(4)
+        .zip(ref_rgba.chunks(4))
+        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 24))
+        .count();
+    assert!(
+        differing as f64 <= 0.02 * (w * h) as f64,
+        "{differing} of {} pixels differ from the reference",
+        w * h
+    );
+}

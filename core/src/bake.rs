@@ -31,6 +31,27 @@ pub struct BakedScene {
     pub fps: f64,
     pub frame_count: usize,
     pub meshes: Vec<BakedMesh>,
+    /// What the bodies moved against (floor, manipulators), for players that show it.
+    pub stage: Option<BakedStage>,
+}
+
+/// The rigid surroundings of a bake, in Y-up metres (glTF's world frame): what a viewer draws
+/// around the baked meshes.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BakedStage {
+    /// Floor height (along +Y), metres.
+    pub floor: Option<f64>,
+    pub capsules: Vec<BakedCapsule>,
+}
+
+/// A capsule manipulator over the bake.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BakedCapsule {
+    pub radius: f64,
+    /// Length of the axis segment between the cap centres, metres.
+    pub length: f64,
+    /// Per output frame: the axis segment's centre and unit direction.
+    pub frames: Vec<([f64; 3], [f64; 3])>,
 }
 
 impl BakedScene {

@@ -107,6 +107,9 @@ impl Exporter for GltfExporter {
                 json!({"name": "springbake", "channels": anim.channels, "samplers": anim.samplers}),
             );
         }
+        if let Some(stage) = &baked.stage {
+            add_stage(&mut b, stage);
+        }
         if ext.as_deref() == Some("glb") {
             return Ok(vec![OutputFile {
                 path: out.clone(),
@@ -130,6 +133,30 @@ impl Exporter for GltfExporter {
             },
         ])
     }
+}
+
+/// The bake's surroundings as the document's `extras.springbake_stage` (Y-up metres, glTF's
+/// world frame): `floor` (height or null) and `capsules` (`radius`, `length`, and per frame
+/// `[cx, cy, cz, ax, ay, az]`: the axis segment's centre and direction), for players that draw
+/// what the bodies moved against. Other extras of the source are kept.
+fn add_stage(b: &mut DocBuilder, stage: &springbake_core::bake::BakedStage) {
+    let capsules: Vec<Value> = stage
+        .capsules
+        .iter()
+        .map(|c| {
+            let frames: Vec<Value> = c
+                .frames
+                .iter()
+                .map(|(p, a)| json!([p[0], p[1], p[2], a[0], a[1], a[2]]))
+                .collect();
+            json!({"radius": c.radius, "length": c.length, "frames": frames})
+        })
+        .collect();
+    let extras = b.root.entry("extras").or_insert_with(|| json!({}));
+    if !extras.is_object() {
+        *extras = json!({});
+    }
+    extras["springbake_stage"] = json!({"floor": stage.floor, "capsules": capsules});
 }
 
 /// Channels and samplers of the one animation we add.
@@ -878,6 +905,7 @@ mod tests {
             fps: 24.0,
             frame_count: 1,
             meshes: vec![],
+            stage: None,
         };
         let settings = ExportSettings {
             path: "out.usd".into(),

@@ -148,6 +148,7 @@ fn lattice_bake(mesh_index: usize, mesh: &DisplayMesh) -> BakedMesh {
 
 fn bake_all(scene: &ImportedScene) -> BakedScene {
     BakedScene {
+        stage: None,
         fps: FPS,
         frame_count: FRAMES,
         meshes: scene
@@ -579,6 +580,7 @@ fn shared_mesh_gets_a_copy_per_baked_node() {
         fps: FPS,
         frame_count: FRAMES,
         meshes: vec![],
+        stage: None,
     };
     for (i, m) in scene.meshes.iter().enumerate() {
         let frames = (0..FRAMES)
@@ -816,6 +818,7 @@ fn textures_referenced_by_uri_are_embedded() {
         })
         .collect();
     let baked = BakedScene {
+        stage: None,
         fps: FPS,
         frame_count: FRAMES,
         meshes: vec![BakedMesh {

@@ -47,6 +47,7 @@ fn displacement(k: usize, p: [f32; 3]) -> [f64; 3] {
 fn synthetic_bake(scene: &ImportedScene) -> BakedScene {
     BakedScene {
         fps: FPS,
+        stage: None,
         frame_count: SAMPLES,
         meshes: scene
             .meshes

@@ -32,6 +32,7 @@ fn settings(path: &str) -> ExportSettings {
 fn shifted_bake(scene: &ImportedScene, frames: usize, fps: f64) -> BakedScene {
     BakedScene {
         fps,
+        stage: None,
         frame_count: frames,
         meshes: scene
             .meshes

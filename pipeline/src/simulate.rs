@@ -3,7 +3,7 @@
 use crate::frame::SimFrame;
 use crate::report::{BodyReport, Seconds};
 use crate::{BakeHooks, LoadedScene, PipelineError};
-use springbake_core::bake::{BakedLattice, BakedMesh, BakedScene};
+use springbake_core::bake::{BakedCapsule, BakedLattice, BakedMesh, BakedScene, BakedStage};
 use springbake_core::display::{ImportedScene, SourceDocument};
 use springbake_core::lattice::{Embedding, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
@@ -619,14 +619,47 @@ impl Prepared {
                 p(f, total);
             }
         }
+        let stage = Some(self.stage(fps, total));
         Ok((
             BakedScene {
+                stage,
                 fps,
                 frame_count: total,
                 meshes,
             },
             diagnostics,
         ))
+    }
+
+    /// The floor and the manipulators' capsule at every output frame, in Y-up metres.
+    fn stage(&self, fps: f64, frames: usize) -> BakedStage {
+        let z_up = self.frame.up == springbake_core::display::UpAxis::Z;
+        let y_up = |v: Vector3<f64>| {
+            if z_up {
+                [v.x, v.z, -v.y]
+            } else {
+                [v.x, v.y, v.z]
+            }
+        };
+        let capsules = self
+            .world
+            .manipulators
+            .iter()
+            .map(|track| BakedCapsule {
+                radius: track.radius,
+                length: track.length,
+                frames: (0..frames)
+                    .map(|f| {
+                        let c = track.capsule_at(f as f64 / fps);
+                        (y_up(c.centre), y_up(c.axis))
+                    })
+                    .collect(),
+            })
+            .collect();
+        BakedStage {
+            floor: self.floor,
+            capsules,
+        }
     }
 
     fn current_penetration(&self) -> f64 {

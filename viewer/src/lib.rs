@@ -76,10 +76,13 @@ pub struct ScreenshotArgs {
     pub output: PathBuf,
     pub width: u32,
     pub height: u32,
+    /// Frame the whole motion (the camera every frame of a flipbook uses) instead of the
+    /// bodies at `frame`.
+    pub frame_all: bool,
 }
 
 impl ScreenshotArgs {
-    /// Frame 1 at 800 × 600.
+    /// Frame 1 at 800 × 600, framing the bodies at the frame.
     pub fn new(input: impl Into<PathBuf>, output: impl Into<PathBuf>) -> ScreenshotArgs {
         ScreenshotArgs {
             input: input.into(),
@@ -87,6 +90,7 @@ impl ScreenshotArgs {
             output: output.into(),
             width: 800,
             height: 600,
+            frame_all: false,
         }
     }
 }
@@ -101,8 +105,18 @@ pub fn initial_camera(source: &ViewSource) -> OrbitCamera {
     OrbitCamera::framing(lo, hi, source.up())
 }
 
-/// Render frame `args.frame` of `args.input` to a PNG with the software rasterizer, seen by
-/// [`initial_camera`].
+/// The camera a screenshot of 1-based `frame` uses: the bodies there and the floor under them,
+/// from the same three-quarter view as [`initial_camera`].
+pub fn camera_at(source: &mut ViewSource, frame: usize) -> Result<OrbitCamera, ViewerError> {
+    let (lo, hi) = source
+        .bounds_at(frame.min(source.frame_count().max(1)))?
+        .unwrap_or_default();
+    Ok(OrbitCamera::framing(lo, hi, source.up()))
+}
+
+/// Render frame `args.frame` of `args.input` to a PNG with the software rasterizer, the camera
+/// framing the bodies at that frame and the floor under them ([`camera_at`]), or the whole
+/// motion ([`initial_camera`]) with `frame_all`.
 pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     if args.width == 0
         || args.height == 0
@@ -119,7 +133,11 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     }
     let registry = springbake_pipeline::default_registry();
     let mut source = ViewSource::open(&registry, &args.input)?;
-    let camera = initial_camera(&source);
+    let camera = if args.frame_all {
+        initial_camera(&source)
+    } else {
+        camera_at(&mut source, args.frame)?
+    };
     let size = (args.width, args.height);
     let image = render_frame(&mut source, &args.input, &camera, args.frame, size)?;
     let bytes = image.to_png().map_err(|e| ViewerError::Io {

@@ -121,6 +121,69 @@ pub struct BakedPlayback {
     pub frame_count: usize,
     /// Frames per second from the animation's key times (24 when it has a single key).
     pub fps: f64,
+    /// The floor height (Y-up metres) from the file's `extras.springbake_stage`, when it had
+    /// one.
+    pub floor: Option<f64>,
+    /// The manipulators the bake recorded there.
+    pub capsules: Vec<StageCapsule>,
+}
+
+/// A manipulator recorded in a baked glTF: per frame the axis centre and direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StageCapsule {
+    pub radius: f64,
+    pub length: f64,
+    pub frames: Vec<[f64; 6]>,
+}
+
+impl StageCapsule {
+    /// The capsule at 1-based `frame` (clamped).
+    pub fn at(&self, frame: usize) -> Option<Capsule> {
+        let f = self
+            .frames
+            .get(frame.clamp(1, self.frames.len().max(1)) - 1)?;
+        Some(Capsule {
+            centre: Vector3::new(f[0], f[1], f[2]),
+            axis: Vector3::new(f[3], f[4], f[5]),
+            length: self.length,
+            radius: self.radius,
+            velocity: Vector3::zeros(),
+            friction: 0.0,
+        })
+    }
+}
+
+/// `extras.springbake_stage` of a baked glTF (written by springbake's exporter): the floor and
+/// the capsules; absent or malformed parts are left out.
+fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>) {
+    let stage = &doc.json["extras"]["springbake_stage"];
+    let floor = stage["floor"].as_f64().filter(|h| h.is_finite());
+    let capsules = stage["capsules"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|c| {
+            let radius = c["radius"].as_f64().filter(|r| r.is_finite() && *r > 0.0)?;
+            let length = c["length"]
+                .as_f64()
+                .filter(|l| l.is_finite() && *l >= 0.0)?;
+            let frames = c["frames"]
+                .as_array()?
+                .iter()
+                .map(|f| {
+                    let v: Vec<f64> = f.as_array()?.iter().filter_map(Value::as_f64).collect();
+                    (v.len() == 6 && v.iter().all(|x| x.is_finite()))
+                        .then(|| [v[0], v[1], v[2], v[3], v[4], v[5]])
+                })
+                .collect::<Option<Vec<_>>>()?;
+            (!frames.is_empty()).then_some(StageCapsule {
+                radius,
+                length,
+                frames,
+            })
+        })
+        .collect();
+    (floor, capsules)
 }
 
 impl BakedPlayback {
@@ -260,12 +323,22 @@ impl ViewSource {
             }
             ViewSource::Baked(b) => {
                 let step = (b.frame_count / 200).max(1);
+                let up = UpAxis::Y.vector();
                 for f in (1..=b.frame_count).step_by(step) {
                     for m in b.meshes_at(f) {
                         if let Some((lo, hi)) = m.bounds() {
                             points.push(lo);
                             points.push(hi);
+                            if let Some(floor) = b.floor {
+                                points.push(lo - up * up.dot(&lo) + up * floor);
+                                points.push(hi - up * up.dot(&hi) + up * floor);
+                            }
                         }
+                    }
+                    for c in b.capsules.iter().filter_map(|c| c.at(f)) {
+                        let (a, e) = c.endpoints();
+                        points.push(a);
+                        points.push(e);
                     }
                 }
             }
@@ -273,11 +346,40 @@ impl ViewSource {
         crate::raster::bounds_of(points.iter())
     }
 
-    /// Floor height along up, when the scene has a floor (a baked file has none).
+    /// The box a camera should frame to show the bodies at 1-based `frame`: the bodies there
+    /// and, below them, the floor they stand on or fall to (a simulation steps to `frame`).
+    pub fn bounds_at(
+        &mut self,
+        frame: usize,
+    ) -> Result<Option<(Vector3<f64>, Vector3<f64>)>, ViewerError> {
+        let (bodies, up) = match self {
+            ViewSource::Simulated(s) => {
+                s.advance_to(frame)?;
+                (s.body_meshes(), s.up())
+            }
+            ViewSource::Baked(b) => (b.meshes_at(frame), UpAxis::Y.vector()),
+        };
+        let floor = self.floor();
+        let mut points = Vec::new();
+        for m in &bodies {
+            if let Some((lo, hi)) = m.bounds() {
+                points.push(lo);
+                points.push(hi);
+                if let Some(h) = floor {
+                    points.push(lo - up * up.dot(&lo) + up * h);
+                    points.push(hi - up * up.dot(&hi) + up * h);
+                }
+            }
+        }
+        Ok(crate::raster::bounds_of(points.iter()))
+    }
+
+    /// Floor height along up, when the scene has a floor (a baked file: when springbake
+    /// recorded one).
     pub fn floor(&self) -> Option<f64> {
         match self {
             ViewSource::Simulated(s) => s.prepared.floor,
-            ViewSource::Baked(_) => None,
+            ViewSource::Baked(b) => b.floor,
         }
     }
 
@@ -288,7 +390,16 @@ impl ViewSource {
                 s.advance_to(frame)?;
                 Ok(s.meshes())
             }
-            ViewSource::Baked(b) => Ok(b.meshes_at(frame)),
+            ViewSource::Baked(b) => {
+                let mut meshes = b.meshes_at(frame);
+                meshes.extend(
+                    b.capsules
+                        .iter()
+                        .filter_map(|c| c.at(frame))
+                        .map(|c| capsule_mesh(&c, 24, 6, CAPSULE_COLOUR)),
+                );
+                Ok(meshes)
+            }
         }
     }
 }
@@ -450,9 +561,12 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
             triangles,
         });
     }
+    let (floor, capsules) = read_stage(&doc);
     Ok(Some(BakedPlayback {
         meshes,
         frame_count,
         fps,
+        floor,
+        capsules,
     }))
 }
