@@ -228,6 +228,9 @@ impl BakedPlayback {
     }
 }
 
+/// An axis-aligned box: lowest and highest corner, metres.
+pub type Bounds = (Vector3<f64>, Vector3<f64>);
+
 /// What a file opens as.
 pub enum ViewSource {
     Simulated(Box<Simulation>),
@@ -348,10 +351,7 @@ impl ViewSource {
 
     /// The box a camera should frame to show the bodies at 1-based `frame`: the bodies there
     /// and, below them, the floor they stand on or fall to (a simulation steps to `frame`).
-    pub fn bounds_at(
-        &mut self,
-        frame: usize,
-    ) -> Result<Option<(Vector3<f64>, Vector3<f64>)>, ViewerError> {
+    pub fn bounds_at(&mut self, frame: usize) -> Result<Option<Bounds>, ViewerError> {
         let (bodies, up) = match self {
             ViewSource::Simulated(s) => {
                 s.advance_to(frame)?;
