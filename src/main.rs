@@ -73,42 +73,7 @@ enum Command {
     /// scene's `[wedge]` table) give the cartesian product; each variant goes to
     /// OUT/<index>/ (scene.toml, outputs, report.json), with OUT/index.json and a contact
     /// sheet PNG of every variant. Reruns skip variants whose inputs and outputs are unchanged.
-    Wedge {
-        /// The scene file (.toml) to vary.
-        scene: PathBuf,
-        /// PATH=V1,V2,…: a setting path (body[0].material, world.gravity, solver.substeps)
-        /// and its values (TOML, or bare words as strings); repeat for more settings.
-        #[arg(long, value_name = "PATH=V1,V2")]
-        vary: Vec<String>,
-        /// Output folder (default: `wedges/` beside the scene).
-        #[arg(short, long)]
-        output: Option<PathBuf>,
-        /// Variants baked at once on this machine (each gets its share of the cores).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
-        jobs: u32,
-        /// Bake only this variant (0-based), here: what each job runs.
-        #[arg(long, value_name = "INDEX")]
-        only: Option<usize>,
-        /// Contact sheet PNG (default OUT/contact_sheet.png).
-        #[arg(long, value_name = "FILE.png")]
-        sheet: Option<PathBuf>,
-        /// Do not render a contact sheet.
-        #[arg(long)]
-        no_sheet: bool,
-        /// Run the variants as tasks on this Ray cluster (e.g. 127.0.0.1:6379); needs Python
-        /// with `ray`, and the scene at the same path on every worker.
-        #[arg(long, value_name = "ADDRESS")]
-        ray: Option<String>,
-        /// The springbake program on the Ray workers (default: this program's path).
-        #[arg(long, value_name = "PATH")]
-        ray_binary: Option<String>,
-        /// Write one command line per variant to this JSON file for a farm manager, and stop.
-        #[arg(long, value_name = "FILE.json")]
-        emit_jobs: Option<PathBuf>,
-        /// Bake every variant, even those unchanged since the last run.
-        #[arg(long)]
-        force: bool,
-    },
+    Wedge(wedge::WedgeArgs),
     /// Bake the built-in demo (a soft ball dropped and hit by the manipulator); no files needed.
     Demo {
         /// Output file.
@@ -315,31 +280,7 @@ fn run(command: Command) -> Result<(), Failure> {
             );
             Ok(())
         }
-        Command::Wedge {
-            scene,
-            vary,
-            output,
-            jobs,
-            only,
-            sheet,
-            no_sheet,
-            ray,
-            ray_binary,
-            emit_jobs,
-            force,
-        } => wedge::run(wedge::WedgeArgs {
-            scene,
-            vary,
-            output,
-            jobs: jobs as usize,
-            only,
-            sheet,
-            no_sheet,
-            ray,
-            ray_binary,
-            emit_jobs,
-            force,
-        }),
+        Command::Wedge(args) => wedge::run(args),
         Command::Inspect { file, cells, json } => inspect(&file, cells, json),
         Command::Plugins => {
             let registry = default_registry();

@@ -20,18 +20,42 @@ const RAY_DRIVER: &str = include_str!("wedge_ray.py");
 /// Each variant's record of what it was baked from and what it wrote.
 const RECORD: &str = "wedge.json";
 
-/// `springbake wedge` as parsed by clap.
+/// `springbake wedge`'s arguments.
+#[derive(clap::Args)]
 pub struct WedgeArgs {
+    /// The scene file (.toml) to vary.
     pub scene: PathBuf,
+    /// PATH=V1,V2,…: a setting path (body[0].material, world.gravity, solver.substeps)
+    /// and its values (TOML, or bare words as strings); repeat for more settings.
+    #[arg(long, value_name = "PATH=V1,V2")]
     pub vary: Vec<String>,
+    /// Output folder (default: `wedges/` beside the scene).
+    #[arg(short, long)]
     pub output: Option<PathBuf>,
-    pub jobs: usize,
+    /// Variants baked at once on this machine (each gets its share of the cores).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub jobs: u32,
+    /// Bake only this variant (0-based), here: what each job runs.
+    #[arg(long, value_name = "INDEX")]
     pub only: Option<usize>,
+    /// Contact sheet PNG (default OUT/contact_sheet.png).
+    #[arg(long, value_name = "FILE.png")]
     pub sheet: Option<PathBuf>,
+    /// Do not render a contact sheet.
+    #[arg(long)]
     pub no_sheet: bool,
+    /// Run the variants as tasks on this Ray cluster (e.g. 127.0.0.1:6379); needs Python
+    /// with `ray`, and the scene at the same path on every worker.
+    #[arg(long, value_name = "ADDRESS")]
     pub ray: Option<String>,
+    /// The springbake program on the Ray workers (default: this program's path).
+    #[arg(long, value_name = "PATH")]
     pub ray_binary: Option<String>,
+    /// Write one command line per variant to this JSON file for a farm manager, and stop.
+    #[arg(long, value_name = "FILE.json")]
     pub emit_jobs: Option<PathBuf>,
+    /// Bake every variant, even those unchanged since the last run.
+    #[arg(long)]
     pub force: bool,
 }
 
@@ -88,7 +112,7 @@ pub fn run(args: WedgeArgs) -> Result<(), Failure> {
     let started = Instant::now();
     let failures = match &args.ray {
         Some(address) => run_on_ray(&plan, &args, &out, &pending, address)?,
-        None => run_locally(&args, &out, &pending, args.jobs.max(1))?,
+        None => run_locally(&args, &out, &pending, args.jobs.max(1) as usize)?,
     };
     let index = write_index(&plan, &out, started.elapsed().as_secs_f64())?;
     if !args.no_sheet {

@@ -96,15 +96,20 @@ pub fn parse_size(text: &str) -> Result<u64, String> {
     Ok(bytes as u64)
 }
 
-/// The bake's estimated peak memory, bytes, and a sentence naming what it is made of.
-pub fn estimate_memory(prepared: &Prepared, scene: &SceneFile, output: &Path) -> (u64, String) {
-    let nodes = prepared.world.nodes.len() as u64;
-    let vertices: u64 = prepared
+/// Display vertices of every simulated body (what each output frame records).
+fn display_vertices(prepared: &Prepared) -> u64 {
+    prepared
         .bodies
         .iter()
         .filter_map(|b| prepared.export_scene.meshes.get(b.mesh_index))
         .map(|m| m.vertex_count() as u64)
-        .sum();
+        .sum()
+}
+
+/// The bake's estimated peak memory, bytes, and a sentence naming what it is made of.
+pub fn estimate_memory(prepared: &Prepared, scene: &SceneFile, output: &Path) -> (u64, String) {
+    let nodes = prepared.world.nodes.len() as u64;
+    let vertices = display_vertices(prepared);
     let frames = scene.output.frames as u64;
     let (per_vertex_frame, exporter_base) = bytes_per_vertex_frame(output);
     let world = nodes.saturating_mul(bytes_per_node(scene.solver.integrator));
@@ -150,12 +155,7 @@ fn disk_bytes_per_vertex_frame(scene: &SceneFile, output: &Path) -> Option<f64> 
 /// what makes it, and what makes it smaller.
 pub fn large_output_note(prepared: &Prepared, scene: &SceneFile, output: &Path) -> Option<String> {
     let per = disk_bytes_per_vertex_frame(scene, output)?;
-    let vertices: u64 = prepared
-        .bodies
-        .iter()
-        .filter_map(|b| prepared.export_scene.meshes.get(b.mesh_index))
-        .map(|m| m.vertex_count() as u64)
-        .sum();
+    let vertices = display_vertices(prepared);
     let frames = scene.output.frames as u64;
     let bytes = (vertices * frames) as f64 * per;
     if bytes < LARGE_OUTPUT_BYTES as f64 {
