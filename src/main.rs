@@ -55,8 +55,10 @@ enum Command {
         /// Material preset for bare meshes: jelly, soft_rubber, rubber, foam, wood, steel.
         #[arg(long)]
         material: Option<String>,
-        /// Write per-frame diagnostics (energies, inverted cells, penetration, substeps) as JSON.
-        #[arg(long, value_name = "FILE.json")]
+        /// Write per-frame diagnostics (energies, inverted cells, penetration, substeps) as JSON,
+        /// or, for a .html file, a page with the flipbook, plots over time and the warnings
+        /// explained (self-contained: opens offline).
+        #[arg(long, value_name = "FILE.json|FILE.html")]
         report: Option<PathBuf>,
         /// Refuse bakes estimated to need more memory than this (e.g. 512M, 4G); default: the
         /// SPRINGBAKE_MAX_MEMORY environment variable, else 90 % of the memory available.
@@ -79,8 +81,8 @@ enum Command {
         /// Output file.
         #[arg(short, long, default_value = "out/demo.glb")]
         output: PathBuf,
-        /// Write the diagnostics report as JSON.
-        #[arg(long, value_name = "FILE.json")]
+        /// Write the diagnostics report as JSON (or an HTML page for a .html file).
+        #[arg(long, value_name = "FILE.json|FILE.html")]
         report: Option<PathBuf>,
     },
     /// Show a mesh file's meshes, vertex and triangle counts, bounds, and the lattice a fit would make.
@@ -392,6 +394,49 @@ fn shoot(
     })
 }
 
+fn is_html(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
+}
+
+/// The HTML report of a finished bake, with a flipbook of its glTF output (400 × 300).
+fn html_report(loaded: &LoadedScene, outcome: &springbake_pipeline::BakeOutcome) -> String {
+    use springbake_viewer::report_page::{report_page, PageInput};
+    let glb = outcome.outputs.iter().find(|p| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"))
+    });
+    let gif = glb.and_then(|file| {
+        let dir = tempfile::tempdir().ok()?;
+        let out = dir.path().join("flipbook.gif");
+        springbake_viewer::flipbook::write_flipbook(&springbake_viewer::flipbook::FlipbookArgs {
+            input: file.clone(),
+            output: out.clone(),
+            frames: None,
+            width: 400,
+            height: 300,
+        })
+        .ok()?;
+        std::fs::read(out).ok()
+    });
+    let title = loaded
+        .scene_path
+        .as_deref()
+        .or_else(|| outcome.outputs.first().map(PathBuf::as_path))
+        .and_then(|p| p.file_name())
+        .map_or_else(|| "bake".to_owned(), |n| n.to_string_lossy().into_owned());
+    report_page(
+        &outcome.report,
+        &PageInput {
+            title: &title,
+            outputs: &outcome.outputs,
+            flipbook_gif: gif.as_deref(),
+        },
+    )
+}
+
 fn is_scene(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
@@ -510,14 +555,18 @@ fn run_bake(
     }
     let outcome = outcome?;
     if let Some(path) = report {
-        let json = serde_json::to_vec_pretty(&outcome.report).map_err(|e| Failure {
-            code: 1,
-            message: e.to_string(),
-        })?;
+        let bytes = if is_html(path) {
+            html_report(loaded, &outcome).into_bytes()
+        } else {
+            serde_json::to_vec_pretty(&outcome.report).map_err(|e| Failure {
+                code: 1,
+                message: e.to_string(),
+            })?
+        };
         springbake_pipeline::write_outputs(
             &[springbake_core::plugin::OutputFile {
                 path: path.to_path_buf(),
-                bytes: json,
+                bytes,
             }],
             &loaded.inputs(),
         )?;

@@ -398,3 +398,62 @@ fn the_demo_screenshot_shows_the_ball_large_with_the_floor_and_the_capsule() {
         w * h
     );
 }
+
+/// `--report report.html`: one self-contained page (nothing fetched: the flipbook is a data
+/// URI), four plots over time with the events marked, the bodies, and the warnings section.
+#[test]
+fn an_html_report_is_a_self_contained_page_with_the_flipbook_and_plots() {
+    use base64::Engine;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = springbake_testkit::workspace_root().join("examples/bowling/bowling.toml");
+    let glb = dir.path().join("bowling.glb");
+    let html = dir.path().join("report.html");
+    let json = dir.path().join("report.json");
+    for report in [&html, &json] {
+        let o = springbake(&[
+            "bake",
+            scene.to_str().unwrap(),
+            "-o",
+            glb.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let page = std::fs::read_to_string(&html).unwrap();
+    let facts: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert!(page.starts_with("<!DOCTYPE html>") && page.trim_end().ends_with("</html>"));
+    assert_eq!(
+        page.matches("<svg").count(),
+        4,
+        "energy, penetration, inverted, substeps"
+    );
+    assert_eq!(page.matches("</svg>").count(), 4);
+    // Offline: no address to fetch, no script.
+    for banned in ["http://", "https://", "<script", "<link"] {
+        assert!(!page.contains(banned), "{banned}");
+    }
+    // The flipbook: every frame of the bake.
+    let data = page
+        .split("data:image/gif;base64,")
+        .nth(1)
+        .and_then(|rest| rest.split('"').next())
+        .expect("an embedded flipbook");
+    let gif = base64::engine::general_purpose::STANDARD
+        .decode(data)
+        .unwrap();
+    let mut decoder = gif::DecodeOptions::new().read_info(&gif[..]).unwrap();
+    let mut frames = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert_eq!(frames, facts["frames"].as_array().unwrap().len());
+    // Each fired event is marked on each plot; every body is listed.
+    let events = facts["events"].as_array().unwrap().len();
+    assert!(events > 0);
+    assert_eq!(page.matches("class=\"event\"").count(), 4 * events);
+    for body in facts["bodies"].as_array().unwrap() {
+        assert!(page.contains(&format!("<td>{}</td>", body["name"].as_str().unwrap())));
+    }
+    assert!(page.contains("<h2>Warnings</h2>"));
+}

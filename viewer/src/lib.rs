@@ -7,7 +7,8 @@
 //! [`source`] (what a file opens as: simulated scene/mesh or baked glTF playback), [`live`]
 //! (manipulator drag with resistance, real-time step plan), [`oscillator`] (the spring plot),
 //! [`reload`] (watcher thread), [`sheet`] (contact sheets of several bakes), [`flipbook`]
-//! (animated GIF/MP4 and one file's contact sheet), and the window itself (private `app`).
+//! (animated GIF/MP4 and one file's contact sheet), [`report_page`] (the HTML bake report),
+//! and the window itself (private `app`).
 
 mod app;
 pub mod camera;
@@ -16,6 +17,7 @@ pub mod live;
 pub mod oscillator;
 pub mod raster;
 pub mod reload;
+pub mod report_page;
 pub mod sheet;
 pub mod source;
 
