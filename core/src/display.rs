@@ -149,6 +149,47 @@ pub struct ImportedScene {
     /// Size of one source unit in metres (glTF: 1; USD: the stage's metersPerUnit).
     pub meters_per_unit: f64,
     pub source: SourceDocument,
+    /// How the materials the primitives name look, for sources whose own document an exporter
+    /// does not re-read (OBJ's `.mtl`); glTF and USD exporters keep the source's materials.
+    pub materials: Vec<SurfaceMaterial>,
+    /// What the importer left out and the user should hear about (a missing `.mtl`).
+    pub notes: Vec<String>,
+}
+
+/// A material's look, as a metallic-roughness surface (what glTF and USD preview surfaces
+/// hold).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceMaterial {
+    pub name: String,
+    /// Linear RGB and alpha.
+    pub base_colour: [f32; 4],
+    pub roughness: f32,
+    pub base_colour_texture: Option<TextureImage>,
+    pub normal_texture: Option<TextureImage>,
+    pub opacity_texture: Option<TextureImage>,
+}
+
+impl Default for SurfaceMaterial {
+    fn default() -> Self {
+        SurfaceMaterial {
+            name: String::new(),
+            base_colour: [0.8, 0.8, 0.8, 1.0],
+            roughness: 0.5,
+            base_colour_texture: None,
+            normal_texture: None,
+            opacity_texture: None,
+        }
+    }
+}
+
+/// An image file a material uses, as read (PNG or JPEG).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextureImage {
+    /// The file name as the source wrote it.
+    pub name: String,
+    /// `image/png` or `image/jpeg`.
+    pub mime: String,
+    pub bytes: Vec<u8>,
 }
 
 /// Smooth per-vertex normals of a triangle list (area weighted), for meshes without normals

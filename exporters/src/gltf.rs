@@ -381,11 +381,9 @@ fn fresh_document(scene: &ImportedScene) -> DocBuilder {
         }
     }
     for name in &materials {
-        b.push(
-            "materials",
-            json!({"name": name, "pbrMetallicRoughness": {
-                "baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5}}),
-        );
+        let look = scene.materials.iter().find(|m| &m.name == name);
+        let material = material_json(&mut b, name, look);
+        b.push("materials", material);
     }
     for (i, m) in scene.meshes.iter().enumerate() {
         let mut prims = Vec::new();
@@ -429,6 +427,43 @@ fn fresh_document(scene: &ImportedScene) -> DocBuilder {
     b.push("scenes", json!({"nodes": roots}));
     b.root.insert("scene".into(), json!(0));
     b
+}
+
+/// A glTF material from a source's material description (OBJ's `.mtl`): base colour and
+/// alpha, roughness (metallic 0), and the base colour, normal and opacity images embedded in
+/// the binary. Without a description, the grey Blender gives a material it knows only by name.
+fn material_json(
+    b: &mut DocBuilder,
+    name: &str,
+    look: Option<&springbake_core::display::SurfaceMaterial>,
+) -> Value {
+    let default = springbake_core::display::SurfaceMaterial::default();
+    let look = look.unwrap_or(&default);
+    let c = look.base_colour;
+    let mut pbr = json!({
+        "baseColorFactor": [c[0], c[1], c[2], c[3]],
+        "metallicFactor": 0.0,
+        "roughnessFactor": look.roughness,
+    });
+    let mut texture = |image: &springbake_core::display::TextureImage| {
+        let view = b.view(&image.bytes, None);
+        let img = b.push(
+            "images",
+            json!({"name": image.name, "bufferView": view, "mimeType": image.mime}),
+        );
+        b.push("textures", json!({"source": img}))
+    };
+    if let Some(image) = &look.base_colour_texture {
+        pbr["baseColorTexture"] = json!({"index": texture(image)});
+    }
+    let mut material = json!({"name": name, "pbrMetallicRoughness": pbr});
+    if let Some(image) = &look.normal_texture {
+        material["normalTexture"] = json!({"index": texture(image)});
+    }
+    if c[3] < 1.0 || look.opacity_texture.is_some() {
+        material["alphaMode"] = json!("BLEND");
+    }
+    material
 }
 
 fn node_mut(b: &mut DocBuilder, node: usize) -> Result<&mut Value, String> {
@@ -892,6 +927,8 @@ mod tests {
     #[test]
     fn non_glb_output_is_refused() {
         let scene = ImportedScene {
+            materials: Vec::new(),
+            notes: Vec::new(),
             meshes: vec![],
             up_axis: UpAxis::Y,
             meters_per_unit: 1.0,

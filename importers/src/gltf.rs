@@ -49,6 +49,8 @@ impl Importer for GltfImporter {
             ));
         }
         Ok(ImportedScene {
+            materials: Vec::new(),
+            notes: Vec::new(),
             meshes,
             up_axis: UpAxis::Y,
             meters_per_unit: 1.0,

@@ -3,6 +3,7 @@
 use springbake_core::plugin::{Plugin, Registry};
 
 pub mod gltf;
+pub mod mtl;
 pub mod obj;
 
 /// Registers every built-in importer on a host's [`Registry`].

@@ -60,7 +60,14 @@ impl Importer for ObjImporter {
     ) -> Result<ImportedScene, PluginError> {
         let doc = ObjDocument::parse(path, bytes)?;
         let meshes = doc.display_meshes(path, settings)?;
+        let root = settings
+            .root
+            .clone()
+            .unwrap_or_else(|| path.parent().map(Path::to_path_buf).unwrap_or_default());
+        let (materials, notes) = crate::mtl::read_libraries(path, &doc.mtllibs, &root)?;
         Ok(ImportedScene {
+            materials,
+            notes,
             meshes,
             up_axis: UpAxis::Y,
             meters_per_unit: 1.0,
@@ -110,7 +117,7 @@ pub struct ObjDocument {
     pub objects: Vec<ObjObject>,
     /// `usemtl` names in order of first use.
     pub materials: Vec<String>,
-    /// `mtllib` references as written (the material files are not read; a missing one is fine).
+    /// `mtllib` references as written (read by [`crate::mtl`]; a missing one is a note).
     pub mtllibs: Vec<String>,
     /// `g` group names seen (groups do not split objects, as in Blender's default import).
     pub groups: Vec<String>,

@@ -398,11 +398,13 @@ pub fn bake(
     outputs::check_writable(&output, "output")?;
     let mut seconds = Seconds::default();
     let mut prepared = prepare(registry, loaded, &mut seconds)?;
-    if let (Some(note), Some(text)) = (
-        hooks.note.as_mut(),
-        budget::large_output_note(&prepared, &loaded.scene, &output),
-    ) {
-        note(&text);
+    if let Some(note) = hooks.note.as_mut() {
+        for text in &prepared.export_scene.notes {
+            note(text);
+        }
+        if let Some(text) = budget::large_output_note(&prepared, &loaded.scene, &output) {
+            note(&text);
+        }
     }
     budget::check_memory(
         &prepared,

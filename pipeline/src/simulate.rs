@@ -110,6 +110,8 @@ pub fn prepare(
         imported[0].clone()
     } else {
         ImportedScene {
+            materials: Vec::new(),
+            notes: Vec::new(),
             meshes: Vec::new(),
             up_axis: frame.up,
             meters_per_unit: 1.0,
@@ -130,6 +132,17 @@ pub fn prepare(
         local_from_sim: Matrix4<f64>,
     }
     let mut pending = Vec::new();
+    if !single_source {
+        // Materials by name, the first source's description of a name winning.
+        for source in &imported {
+            export_scene.notes.extend(source.notes.iter().cloned());
+            for m in &source.materials {
+                if !export_scene.materials.iter().any(|k| k.name == m.name) {
+                    export_scene.materials.push(m.clone());
+                }
+            }
+        }
+    }
     for (b, (section, source)) in scene.body.iter().zip(&imported).enumerate() {
         let sim_from_source = frame.sim_from_source(source.up_axis, source.meters_per_unit);
         let offset = Vector3::from(section.offset);

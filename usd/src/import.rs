@@ -184,6 +184,8 @@ impl UsdImporter {
             .map(|m| build_display_mesh(m, report))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(ImportedScene {
+            materials: Vec::new(),
+            notes: Vec::new(),
             meshes,
             up_axis: stage.up_axis,
             meters_per_unit: stage.meters_per_unit,

@@ -191,6 +191,8 @@ fn synthetic_gltf_scene() -> ImportedScene {
         * Rotation3::from_axis_angle(&Vector3::y_axis(), 0.5).to_homogeneous()
         * Matrix4::new_nonuniform_scaling(&Vector3::new(2.0, 1.0, 1.0));
     ImportedScene {
+        materials: Vec::new(),
+        notes: Vec::new(),
         meshes: vec![DisplayMesh {
             name: "Blob.001".into(),
             source_key: "node:0".into(),

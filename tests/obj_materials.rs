@@ -1,0 +1,89 @@
+//! OBJ materials survive a bake (issue 19 item 1): Blender writes an OBJ with a `.mtl` (a
+//! textured material and a plain blue one), springbake bakes it to glTF, and Blender sees the
+//! same objects, materials, base colours (within 1/255), textures and UV layers in the bake as
+//! in the OBJ. A missing `.mtl` is a note, not a failure.
+#![allow(clippy::unwrap_used)]
+
+use springbake_testkit::{assert_gltf_valid, last_json_line, run_python_client};
+use std::process::Command;
+
+fn look(file: &std::path::Path) -> serde_json::Value {
+    last_json_line(&run_python_client(
+        "obj_materials_blender.py",
+        &["look", file.to_str().unwrap()],
+    ))
+}
+
+#[test]
+fn blender_sees_the_objs_materials_in_the_baked_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run_python_client("obj_materials_blender.py", &["make", d.to_str().unwrap()]);
+    let obj = d.join("props.obj");
+    let glb = d.join("props.glb");
+    let bake = Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args([
+            "bake",
+            obj.to_str().unwrap(),
+            "-o",
+            glb.to_str().unwrap(),
+            "--frames",
+            "6",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        bake.status.success(),
+        "{}",
+        String::from_utf8_lossy(&bake.stderr)
+    );
+    assert_gltf_valid(&glb);
+    let source = look(&obj);
+    let baked = look(&glb);
+    assert_eq!(source["objects"], 2, "{source}");
+    assert_eq!(baked["objects"], source["objects"], "{baked}");
+    assert_eq!(baked["uv_layers"], source["uv_layers"], "{baked}");
+    let (want, got) = (
+        source["materials"].as_object().unwrap(),
+        baked["materials"].as_object().unwrap(),
+    );
+    assert_eq!(got.len(), want.len(), "{baked}");
+    for (name, w) in want {
+        let g = &got[name];
+        assert_eq!(g["textured"], w["textured"], "{name}: {baked}");
+        match (w["colour"].as_array(), g["colour"].as_array()) {
+            (Some(w), Some(g)) => {
+                for (a, b) in w.iter().zip(g) {
+                    let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+                    assert!((a - b).abs() <= 1.0 / 255.0, "{name}: {w:?} vs {g:?}");
+                }
+            }
+            (None, None) => {}
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    assert_eq!(
+        want["Brick"]["textured"], true,
+        "the test's source has a texture"
+    );
+
+    // Without its .mtl the OBJ still bakes, grey, and says why.
+    std::fs::remove_file(d.join("props.mtl")).unwrap();
+    let bare = Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args([
+            "bake",
+            obj.to_str().unwrap(),
+            "-o",
+            glb.to_str().unwrap(),
+            "--frames",
+            "2",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bare.stderr);
+    assert!(bare.status.success(), "{err}");
+    assert!(
+        err.contains("props.mtl") && err.contains("left grey"),
+        "{err}"
+    );
+}
