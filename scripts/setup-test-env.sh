@@ -2,6 +2,7 @@
 # Installs the test clients springbake's tests use into ignored folders of this checkout:
 #   .venv/         Python venv with bpy (Blender as a module), usd-core and ray
 #   node_modules/  the Khronos gltf-validator
+#   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test
 # Idempotent: a second run only checks. Needs network access to PyPI and npm.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,6 +25,14 @@ fi
 if ! .venv/bin/python -c 'import ray' 2>/dev/null; then
   echo "setup: installing ray into .venv (springbake wedge --ray tests)"
   .venv/bin/pip install --quiet --disable-pip-version-check "ray==2.60.0"
+fi
+if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command -v xwd >/dev/null; then
+  echo "setup: installing xvfb, xdotool and x11-apps (the live-window test)"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null 2>&1 \
+    || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null; }
 fi
 if [ ! -f node_modules/gltf-validator/package.json ]; then
   echo "setup: installing gltf-validator into node_modules"

@@ -137,6 +137,14 @@ enum Command {
         /// --frame.
         #[arg(long)]
         frame_all: bool,
+        /// Open the window in live mode (a scene or mesh: the mouse drives a capsule; drag to
+        /// move it, shift-drag up and down, right-drag to turn it).
+        #[arg(long)]
+        live: bool,
+        /// Append one JSON line per drawn frame of the window to this file (frame rate, live
+        /// mode, the bodies' top, the view's centre): for tests and bug reports.
+        #[arg(long, value_name = "FILE.jsonl")]
+        trace: Option<PathBuf>,
         /// Image size in pixels, WIDTHxHEIGHT (default 800x600; 480x360 for a flipbook, 320x240
         /// per frame of a sheet).
         #[arg(long, value_parser = parse_size)]
@@ -310,6 +318,8 @@ fn run(command: Command) -> Result<(), Failure> {
             count,
             frame,
             frame_all,
+            live,
+            trace,
             size,
         } => view(
             file,
@@ -320,6 +330,7 @@ fn run(command: Command) -> Result<(), Failure> {
             count as usize,
             (frame, frame_all),
             size,
+            (live, trace),
         ),
     }
 }
@@ -334,6 +345,7 @@ fn view(
     count: usize,
     frame: (usize, bool),
     size: Option<(u32, u32)>,
+    (live, trace): (bool, Option<PathBuf>),
 ) -> Result<(), Failure> {
     use springbake_viewer::flipbook;
     let failure = |e: springbake_viewer::ViewerError| Failure {
@@ -372,6 +384,8 @@ fn view(
         None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs {
             input: file,
             frame: frame.0,
+            live,
+            trace,
         }),
     }
     .map_err(failure)

@@ -90,6 +90,11 @@ struct ViewerApp {
     timer: StepTimer,
     ui_fps: f64,
     reloader: Reloader,
+    /// `--live`: switch live mode on at the first frame.
+    start_live: bool,
+    /// `--trace`: one JSON line per drawn frame.
+    trace: Option<std::io::BufWriter<std::fs::File>>,
+    opened: Instant,
 }
 
 fn params_of(sim: &Simulation) -> Params {
@@ -165,9 +170,51 @@ impl ViewerApp {
             timer: StepTimer::default(),
             ui_fps: 0.0,
             reloader,
+            start_live: args.live,
+            trace: args
+                .trace
+                .as_ref()
+                .and_then(|p| std::fs::File::create(p).ok())
+                .map(std::io::BufWriter::new),
+            opened: Instant::now(),
         };
         app.install(source, true);
         app
+    }
+
+    /// One `--trace` line for the frame just drawn.
+    fn write_trace(&mut self, view: egui::Rect, pixels_per_point: f32, meshes: &[DrawMesh]) {
+        use std::io::Write;
+        let Some(out) = self.trace.as_mut() else {
+            return;
+        };
+        let up = self.camera.up;
+        let top = meshes
+            .iter()
+            .filter(|m| m.colour == raster::BODY_COLOUR)
+            .flat_map(|m| m.positions.iter())
+            .map(|p| up.dot(p))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let centre = view.center() * pixels_per_point;
+        let capsule = self.live.as_ref().map(|l| up.dot(&l.manipulator.centre));
+        let capsule_at = self.live.as_ref().map(|l| {
+            [
+                l.manipulator.centre.x,
+                l.manipulator.centre.y,
+                l.manipulator.centre.z,
+            ]
+        });
+        let line = serde_json::json!({
+            "capsule_height": capsule,
+            "capsule_at": capsule_at,
+            "t": self.opened.elapsed().as_secs_f64(),
+            "ui_fps": self.ui_fps,
+            "live": self.live.is_some(),
+            "frame": self.frame,
+            "body_top": top.is_finite().then_some(top),
+            "view_centre": [centre.x, centre.y],
+        });
+        let _ = writeln!(out, "{line}").and_then(|()| out.flush());
     }
 
     /// Show a freshly opened source: park the live capsule, record frame 1, frame the camera.
@@ -670,6 +717,10 @@ impl eframe::App for ViewerApp {
             // The file is the truth again: its parameters replace the panel's.
             self.reopen(false);
         }
+        if self.start_live && self.source.is_some() {
+            self.start_live = false;
+            self.toggle_live(true);
+        }
         if self.playing && self.live.is_none() {
             if let Some(source) = &self.source {
                 let fps = source.fps();
@@ -702,6 +753,8 @@ impl eframe::App for ViewerApp {
                     .unwrap_or_default()
             };
             self.draw_view(&painter, response.rect, &meshes);
+            let pixels_per_point = ui.ctx().pixels_per_point();
+            self.write_trace(response.rect, pixels_per_point, &meshes);
         });
         if self.playing || self.live.is_some() {
             ui.ctx().request_repaint();

@@ -65,6 +65,12 @@ pub struct ViewArgs {
     pub input: PathBuf,
     /// 1-based frame to start at.
     pub frame: usize,
+    /// Open in live mode (a scene or mesh: the mouse drives a capsule).
+    pub live: bool,
+    /// Append one JSON line per drawn frame here (time, frame rate, live mode, the bodies'
+    /// top along up, the live capsule's centre, the 3-D view's centre in window pixels): for
+    /// tests and bug reports.
+    pub trace: Option<PathBuf>,
 }
 
 /// `springbake view FILE --screenshot OUT.png [--frame N]`.
