@@ -4,6 +4,7 @@
 //! else. Errors are one readable message, never a panic.
 
 mod demo;
+mod view;
 mod wedge;
 
 use clap::{Parser, Subcommand};
@@ -111,70 +112,7 @@ enum Command {
     },
     /// Open the interactive viewer (orbit, play/scrub, lattice overlay, live mode with a
     /// mouse-driven capsule, parameter panel, live reload), or render one frame to a PNG.
-    View {
-        /// A scene file (.toml), a mesh, or a baked .glb/.gltf (morph frames are played back).
-        file: PathBuf,
-        /// Render this frame with the software rasterizer to a PNG and exit (no window, no GPU).
-        #[arg(long, value_name = "OUT.png")]
-        screenshot: Option<PathBuf>,
-        /// Render the frames (all, or --frames) offscreen to an animated GIF, or to an
-        /// MP4/WebM through ffmpeg when it is installed, and exit.
-        #[arg(long, value_name = "OUT.gif")]
-        flipbook: Option<PathBuf>,
-        /// Render a contact sheet PNG of --count frames spread over the file (or --frames).
-        #[arg(long, value_name = "OUT.png")]
-        sheet: Option<PathBuf>,
-        /// Frames for --flipbook and --sheet: A..B (1-based, inclusive).
-        #[arg(long, value_name = "A..B", value_parser = parse_frames)]
-        frames: Option<std::ops::RangeInclusive<usize>>,
-        /// Frames on a --sheet.
-        #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=64))]
-        count: u32,
-        /// Frame to show (1 = the initial state).
-        #[arg(long, default_value_t = 1)]
-        frame: usize,
-        /// A --screenshot frames the whole motion (as a flipbook does), not the bodies at
-        /// --frame.
-        #[arg(long)]
-        frame_all: bool,
-        /// Open the window in live mode (a scene or mesh: the mouse drives a capsule; drag to
-        /// move it, shift-drag up and down, right-drag to turn it).
-        #[arg(long)]
-        live: bool,
-        /// Append one JSON line per drawn frame of the window to this file (frame rate, live
-        /// mode, the bodies' top, the view's centre): for tests and bug reports.
-        #[arg(long, value_name = "FILE.jsonl")]
-        trace: Option<PathBuf>,
-        /// Image size in pixels, WIDTHxHEIGHT (default 800x600; 480x360 for a flipbook, 320x240
-        /// per frame of a sheet).
-        #[arg(long, value_parser = parse_size)]
-        size: Option<(u32, u32)>,
-    },
-}
-
-/// `A..B` or `A` for `view --frames`.
-fn parse_frames(s: &str) -> Result<std::ops::RangeInclusive<usize>, String> {
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<usize>()
-            .map_err(|e| format!("\"{v}\": {e} (write A..B, e.g. 1..48)"))
-    };
-    match s.split_once("..") {
-        Some((a, b)) => Ok(parse(a)?..=parse(b.trim_start_matches('='))?),
-        None => {
-            let a = parse(s)?;
-            Ok(a..=a)
-        }
-    }
-}
-
-/// `WIDTHxHEIGHT` for `view --size`.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got \"{s}\""))?;
-    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("\"{v}\": {e}"));
-    Ok((parse(w)?, parse(h)?))
+    View(view::ViewCommand),
 }
 
 /// A failure and its exit code.
@@ -277,6 +215,7 @@ fn run(command: Command) -> Result<(), Failure> {
                     frames: None,
                     width: 480,
                     height: 360,
+                    camera: None,
                 },
             )
             .map_err(|e| Failure {
@@ -309,103 +248,8 @@ fn run(command: Command) -> Result<(), Failure> {
             output,
             json,
         } => watch(input, output, json),
-        Command::View {
-            file,
-            screenshot,
-            flipbook,
-            sheet,
-            frames,
-            count,
-            frame,
-            frame_all,
-            live,
-            trace,
-            size,
-        } => view(
-            file,
-            screenshot,
-            flipbook,
-            sheet,
-            frames,
-            count as usize,
-            (frame, frame_all),
-            size,
-            (live, trace),
-        ),
+        Command::View(args) => view::run(args),
     }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn view(
-    file: PathBuf,
-    screenshot: Option<PathBuf>,
-    flipbook: Option<PathBuf>,
-    sheet: Option<PathBuf>,
-    frames: Option<std::ops::RangeInclusive<usize>>,
-    count: usize,
-    frame: (usize, bool),
-    size: Option<(u32, u32)>,
-    (live, trace): (bool, Option<PathBuf>),
-) -> Result<(), Failure> {
-    use springbake_viewer::flipbook;
-    let failure = |e: springbake_viewer::ViewerError| Failure {
-        code: if e.is_user_error() { 2 } else { 1 },
-        message: e.to_string(),
-    };
-    if let Some(output) = &flipbook {
-        let (width, height) = size.unwrap_or((480, 360));
-        let started = std::time::Instant::now();
-        let n = flipbook::write_flipbook(&flipbook::FlipbookArgs {
-            input: file.clone(),
-            output: output.clone(),
-            frames: frames.clone(),
-            width,
-            height,
-        })
-        .map_err(failure)?;
-        println!(
-            "flipbook of {n} frames in {:.1} s: {}",
-            started.elapsed().as_secs_f64(),
-            output.display()
-        );
-    }
-    if let Some(output) = &sheet {
-        flipbook::write_sheet(&file, output, &frames, count, size.unwrap_or((320, 240)))
-            .map_err(failure)?;
-        println!("contact sheet: {}", output.display());
-    }
-    if flipbook.is_some() || sheet.is_some() {
-        return screenshot.map_or(Ok(()), |output| {
-            shoot(file, frame, output, size).map_err(failure)
-        });
-    }
-    match screenshot {
-        Some(output) => shoot(file, frame, output, size),
-        None => springbake_viewer::run_viewer(springbake_viewer::ViewArgs {
-            input: file,
-            frame: frame.0,
-            live,
-            trace,
-        }),
-    }
-    .map_err(failure)
-}
-
-fn shoot(
-    input: PathBuf,
-    (frame, frame_all): (usize, bool),
-    output: PathBuf,
-    size: Option<(u32, u32)>,
-) -> Result<(), springbake_viewer::ViewerError> {
-    let (width, height) = size.unwrap_or((800, 600));
-    springbake_viewer::render_screenshot(&springbake_viewer::ScreenshotArgs {
-        input,
-        frame,
-        output,
-        width,
-        height,
-        frame_all,
-    })
 }
 
 fn is_html(path: &Path) -> bool {
@@ -431,6 +275,7 @@ fn html_report(loaded: &LoadedScene, outcome: &springbake_pipeline::BakeOutcome)
             frames: None,
             width: 400,
             height: 300,
+            camera: None,
         })
         .ok()?;
         std::fs::read(out).ok()

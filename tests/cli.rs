@@ -375,6 +375,32 @@ fn the_demo_screenshot_shows_the_ball_large_with_the_floor_and_the_capsule() {
     assert!(capsule > 0.002, "the capsule: {:.2} %", capsule * 100.0);
     assert!(grid > 0.002, "the floor grid: {:.2} %", grid * 100.0);
 
+    // Another view with --camera: another picture; a bad angle is a usage error.
+    let top = dir.path().join("top.png");
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--screenshot",
+        top.to_str().unwrap(),
+        "--frame",
+        "30",
+        "--size",
+        "320x240",
+        "--camera",
+        "0,80",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(&top).unwrap(), shot);
+    let o = springbake(&[
+        "view",
+        glb.to_str().unwrap(),
+        "--screenshot",
+        top.to_str().unwrap(),
+        "--camera",
+        "up",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+
     let reference = springbake_testkit::workspace_root().join("tests/reference/demo_frame30.png");
     if std::env::var_os("SPRINGBAKE_UPDATE_REFERENCE").is_some() {
         std::fs::write(&reference, &shot).unwrap();

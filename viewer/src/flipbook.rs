@@ -23,6 +23,8 @@ pub struct FlipbookArgs {
     pub frames: Option<RangeInclusive<usize>>,
     pub width: u32,
     pub height: u32,
+    /// `(yaw, pitch)` in degrees instead of the default view.
+    pub camera: Option<(f64, f64)>,
 }
 
 /// The output kinds a flipbook can be.
@@ -74,7 +76,7 @@ pub fn write_flipbook(args: &FlipbookArgs) -> Result<usize, ViewerError> {
     let mut source = ViewSource::open(&registry, &args.input)?;
     let range = frame_range(&args.frames, source.frame_count(), &args.input)?;
     let fps = source.fps();
-    let camera = initial_camera(&source);
+    let camera = crate::aim(initial_camera(&source), args.camera);
     let mut images = Vec::with_capacity(range.clone().count());
     for frame in range {
         let size = (args.width, args.height);

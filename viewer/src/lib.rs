@@ -87,6 +87,8 @@ pub struct ScreenshotArgs {
     /// Frame the whole motion (the camera every frame of a flipbook uses) instead of the
     /// bodies at `frame`.
     pub frame_all: bool,
+    /// `(yaw, pitch)` of the view in degrees instead of the default three-quarter view.
+    pub camera: Option<(f64, f64)>,
 }
 
 impl ScreenshotArgs {
@@ -99,8 +101,18 @@ impl ScreenshotArgs {
             width: 800,
             height: 600,
             frame_all: false,
+            camera: None,
         }
     }
+}
+
+/// Turns `camera` to `angles` (yaw, pitch in degrees) when given.
+pub fn aim(mut camera: OrbitCamera, angles: Option<(f64, f64)>) -> OrbitCamera {
+    if let Some((yaw, pitch)) = angles {
+        camera.yaw_deg = yaw;
+        camera.pitch_deg = pitch.clamp(-89.0, 89.0);
+    }
+    camera
 }
 
 /// Largest screenshot side, pixels.
@@ -146,6 +158,7 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     } else {
         camera_at(&mut source, args.frame)?
     };
+    let camera = aim(camera, args.camera);
     let size = (args.width, args.height);
     let image = render_frame(&mut source, &args.input, &camera, args.frame, size)?;
     let bytes = image.to_png().map_err(|e| ViewerError::Io {
@@ -182,13 +195,38 @@ pub fn render_frame(
             source.frame_count()
         )));
     }
-    let floor = match (source.floor(), source.view_bounds()) {
-        (Some(h), Some((lo, hi))) => raster::floor_meshes(lo, hi, source.up(), h),
-        _ => Vec::new(),
-    };
+    let up = source.up();
     let mut meshes = source.meshes_at(frame)?;
-    meshes.extend(floor);
-    Ok(raster::render(&meshes, camera, width, height))
+    let mut hud = format!("frame {frame}  {:.2} s", (frame - 1) as f64 / source.fps());
+    if let (Some(h), Some((lo, hi))) = (source.floor(), source.view_bounds()) {
+        let shadows = raster::shadow_meshes(&meshes, up, h);
+        meshes.extend(raster::floor_meshes(lo, hi, up, h));
+        meshes.extend(shadows);
+        hud += &format!("  grid {}", metres(raster::floor_grid_spacing(lo, hi, up)));
+    }
+    let mut image = raster::render(&meshes, camera, width, height);
+    // Twice the font's size where it fits, else its own 8 pixels.
+    let scale = if 12 + 16 * hud.chars().count() as u32 <= width {
+        2
+    } else {
+        1
+    };
+    if height >= 40 {
+        let y = height - 10 * scale - 2;
+        sheet::draw_text(&mut image, 6, y, &hud, [200, 205, 215], width - 6, scale);
+    }
+    Ok(image)
+}
+
+/// A length for the HUD: `0.1 m`, `2 cm`, `5 mm`, `20 m`.
+fn metres(m: f64) -> String {
+    if m >= 1.0 {
+        format!("{m} m")
+    } else if m >= 0.01 {
+        format!("{} cm", (m * 100.0 * 1000.0).round() / 1000.0)
+    } else {
+        format!("{} mm", (m * 1000.0 * 1000.0).round() / 1000.0)
+    }
 }
 
 /// Open the interactive window on `args.input` and return when it is closed.

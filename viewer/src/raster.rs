@@ -271,40 +271,72 @@ fn fill_triangle(t: &ShadedTriangle, w: u32, h: u32, depth: &mut [f64], colour: 
 pub const FLOOR_COLOUR: [u8; 3] = [50, 55, 62];
 pub const GRID_COLOUR: [u8; 3] = [78, 84, 94];
 
-/// The floor at height `floor` along `up` under the box `lo..hi`: a quad covering the box's
-/// horizontal extent and a 10 × 10 grid of thin strips a hair above it.
-pub fn floor_meshes(
-    lo: Vector3<f64>,
-    hi: Vector3<f64>,
-    up: Vector3<f64>,
-    floor: f64,
-) -> Vec<DrawMesh> {
+/// The grid spacing for a floor `size` metres across: 1, 2 or 5 × 10ⁿ m, about a tenth of it.
+pub fn grid_spacing(size: f64) -> f64 {
+    let rough = (size / 10.0).max(1e-6);
+    let decade = 10f64.powf(rough.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|k| k * decade)
+        .find(|&s| s >= rough)
+        .unwrap_or(10.0 * decade)
+}
+
+/// The two horizontal unit axes of a floor under `up` (the first world axis not along up).
+fn floor_axes(up: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let trial = if up.x.abs() < 0.9 {
         Vector3::x()
     } else {
         Vector3::z()
     };
     let a = (trial - up * up.dot(&trial)).normalize();
-    let b = up.cross(&a);
-    // Extent of the box's corners along a and b.
-    let (mut a0, mut a1, mut b0, mut b1) = (
+    (a, up.cross(&a))
+}
+
+/// The extent of box `lo..hi` along the floor axes: (a0, a1, b0, b1).
+fn floor_extent(lo: Vector3<f64>, hi: Vector3<f64>, up: Vector3<f64>) -> [f64; 4] {
+    let (a, b) = floor_axes(up);
+    let mut e = [
         f64::INFINITY,
         f64::NEG_INFINITY,
         f64::INFINITY,
         f64::NEG_INFINITY,
-    );
+    ];
     for i in 0..8 {
         let c = Vector3::new(
             if i & 1 == 0 { lo.x } else { hi.x },
             if i & 2 == 0 { lo.y } else { hi.y },
             if i & 4 == 0 { lo.z } else { hi.z },
         );
-        a0 = a0.min(a.dot(&c));
-        a1 = a1.max(a.dot(&c));
-        b0 = b0.min(b.dot(&c));
-        b1 = b1.max(b.dot(&c));
+        e[0] = e[0].min(a.dot(&c));
+        e[1] = e[1].max(a.dot(&c));
+        e[2] = e[2].min(b.dot(&c));
+        e[3] = e[3].max(b.dot(&c));
     }
+    e
+}
+
+/// The grid spacing [`floor_meshes`] draws under `lo..hi`, metres.
+pub fn floor_grid_spacing(lo: Vector3<f64>, hi: Vector3<f64>, up: Vector3<f64>) -> f64 {
+    let [a0, a1, b0, b1] = floor_extent(lo, hi, up);
+    grid_spacing((a1 - a0).max(b1 - b0).max(1e-3) * 1.5)
+}
+
+/// The floor at height `floor` along `up` under the box `lo..hi` (and a quarter of its size
+/// around it): a quad and grid lines a hair above it every [`floor_grid_spacing`] metres, on
+/// round coordinates, so the grid is a scale.
+pub fn floor_meshes(
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+    up: Vector3<f64>,
+    floor: f64,
+) -> Vec<DrawMesh> {
+    let (a, b) = floor_axes(up);
+    let [a0, a1, b0, b1] = floor_extent(lo, hi, up);
     let size = (a1 - a0).max(b1 - b0).max(1e-3);
+    let margin = 0.25 * size;
+    let (a0, a1, b0, b1) = (a0 - margin, a1 + margin, b0 - margin, b1 + margin);
+    let spacing = floor_grid_spacing(lo, hi, up);
     let at = |u: f64, v: f64, lift: f64| a * u + b * v + up * (floor + lift);
     let quad = |p: [Vector3<f64>; 4], mesh: &mut DrawMesh| {
         let base = mesh.positions.len() as u32;
@@ -332,8 +364,12 @@ pub fn floor_meshes(
         colour: GRID_COLOUR,
     };
     let (w, lift) = (0.002 * size, 1e-4 * size);
-    for i in 0..=10 {
-        let u = a0 + (a1 - a0) * i as f64 / 10.0;
+    let lines = |from: f64, to: f64| {
+        let first = (from / spacing).ceil() as i64;
+        let last = (to / spacing).floor() as i64;
+        (first..=last.min(first + 200)).map(move |k| k as f64 * spacing)
+    };
+    for u in lines(a0, a1) {
         quad(
             [
                 at(u - w, b0, lift),
@@ -343,7 +379,8 @@ pub fn floor_meshes(
             ],
             &mut grid,
         );
-        let v = b0 + (b1 - b0) * i as f64 / 10.0;
+    }
+    for v in lines(b0, b1) {
         quad(
             [
                 at(a0, v - w, lift),
@@ -355,6 +392,55 @@ pub fn floor_meshes(
         );
     }
     vec![plane, grid]
+}
+
+/// Soft contact shadows on the floor: under each mesh, three nested discs over its footprint
+/// (its extent along the floor axes), darker towards the middle and fainter the higher the
+/// mesh hangs above the floor.
+pub fn shadow_meshes(meshes: &[DrawMesh], up: Vector3<f64>, floor: f64) -> Vec<DrawMesh> {
+    let (a, b) = floor_axes(up);
+    let mut out = Vec::new();
+    for m in meshes {
+        let Some((lo, hi)) = m.bounds() else {
+            continue;
+        };
+        let [a0, a1, b0, b1] = floor_extent(lo, hi, up);
+        let (ca, cb) = ((a0 + a1) * 0.5, (b0 + b1) * 0.5);
+        let (ra, rb) = ((a1 - a0) * 0.5, (b1 - b0) * 0.5);
+        let size = ra.max(rb).max(1e-6);
+        let height = (m
+            .positions
+            .iter()
+            .map(|p| up.dot(p))
+            .fold(f64::INFINITY, f64::min)
+            - floor)
+            .max(0.0);
+        let strength = 0.8 / (1.0 + 2.0 * height / size);
+        for (k, (scale, dark)) in [(1.15, 0.35), (1.0, 0.65), (0.8, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let f = strength * dark;
+            let colour = FLOOR_COLOUR.map(|c| (c as f64 * (1.0 - 0.7 * f)).round() as u8);
+            let lift = (2.0 + k as f64) * 1e-4 * size;
+            let mut disc = DrawMesh {
+                positions: vec![a * ca + b * cb + up * (floor + lift)],
+                triangles: Vec::new(),
+                colour,
+            };
+            let n = 32u32;
+            for i in 0..n {
+                let t = std::f64::consts::TAU * i as f64 / n as f64;
+                let (s, c) = t.sin_cos();
+                disc.positions.push(
+                    a * (ca + ra * scale * c) + b * (cb + rb * scale * s) + up * (floor + lift),
+                );
+                disc.triangles.push([0, 1 + i, 1 + (i + 1) % n]);
+            }
+            out.push(disc);
+        }
+    }
+    out
 }
 
 /// A closed triangle mesh of a capsule: `segments` around the axis, `rings` per hemispherical

@@ -112,6 +112,8 @@ pub struct BakedMeshData {
     /// Weights per frame (one per target), from the node's `weights` animation channel.
     pub frame_weights: Vec<Vec<f32>>,
     pub triangles: Vec<[u32; 3]>,
+    /// The base colour of its first primitive's material (sRGB), else the viewer's body colour.
+    pub colour: [u8; 3],
 }
 
 /// A baked glTF's frames.
@@ -151,6 +153,29 @@ impl StageCapsule {
             friction: 0.0,
         })
     }
+}
+
+/// The sRGB base colour of glTF mesh `mesh`'s first primitive's material (`baseColorFactor`
+/// is linear).
+fn base_colour(doc: &GltfDocument, mesh: usize) -> Option<[u8; 3]> {
+    let material = doc.array("meshes").get(mesh)?["primitives"][0]["material"].as_u64()?;
+    let factor = doc.array("materials").get(material as usize)?["pbrMetallicRoughness"]
+        ["baseColorFactor"]
+        .as_array()?
+        .iter()
+        .take(3)
+        .map(|c| c.as_f64())
+        .collect::<Option<Vec<f64>>>()?;
+    let srgb = |c: f64| {
+        let c = c.clamp(0.0, 1.0);
+        let s = if c <= 0.003_130_8 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as u8
+    };
+    (factor.len() == 3).then(|| [srgb(factor[0]), srgb(factor[1]), srgb(factor[2])])
 }
 
 /// `extras.springbake_stage` of a baked glTF (written by springbake's exporter): the floor and
@@ -221,7 +246,7 @@ impl BakedPlayback {
                 DrawMesh {
                     positions,
                     triangles: m.triangles.clone(),
-                    colour: BODY_COLOUR,
+                    colour: m.colour,
                 }
             })
             .collect()
@@ -553,12 +578,16 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
                 }
             }
         }
+        let colour = gltf_mesh
+            .and_then(|mi| base_colour(&doc, mi))
+            .unwrap_or(BODY_COLOUR);
         meshes.push(BakedMeshData {
             world_from_local: mesh.world_from_local,
             rest,
             deltas,
             frame_weights,
             triangles,
+            colour,
         });
     }
     let (floor, capsules) = read_stage(&doc);

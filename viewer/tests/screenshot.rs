@@ -96,6 +96,7 @@ fn shot(input: &Path, output: &Path, frame: usize) -> Decoded {
         height: 120,
         // One camera for every frame, so the motion shows as motion in the picture.
         frame_all: true,
+        camera: None,
     };
     render_screenshot(&args).unwrap();
     decode(output)
