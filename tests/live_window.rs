@@ -1,7 +1,7 @@
 //! The interactive window, in a real X server (issue 21 item 4): `springbake view --live`
 //! under Xvfb (Mesa's software OpenGL), driven by synthetic mouse input from xdotool (the
-//! mouse wheel lowers the live capsule onto a rubber ball resting on the floor: Blender's
-//! icosphere from the shared corpus). The window's trace
+//! mouse wheel lowers the live capsule onto a soft rubber block resting on the floor, its faces
+//! divided so its top can dent). The window's trace
 //! (`--trace`, one JSON line per drawn frame) shows live mode on, the block squashed under the
 //! capsule, and the frame rate kept; a screenshot of the window is written to
 //! `target/test-artifacts/live_window.png`. Xvfb and xdotool come from the distribution's
@@ -65,18 +65,48 @@ fn xwd_to_png(xwd: &[u8], png_path: &Path) {
         .unwrap();
 }
 
+/// An OBJ of a box `width` × `height` × `width` standing on y = 0, each face divided into
+/// `n` × `n` quads (outward faces).
+fn divided_box(width: f64, height: f64, n: usize) -> String {
+    let mut obj = String::from("o Block\n");
+    let mut count = 0;
+    // Each face: an origin and two edge vectors whose cross product points outward.
+    let (w, h) = (width, height);
+    let faces: [([f64; 3], [f64; 3], [f64; 3]); 6] = [
+        ([-w / 2.0, h, -w / 2.0], [0.0, 0.0, w], [w, 0.0, 0.0]),
+        ([-w / 2.0, 0.0, -w / 2.0], [w, 0.0, 0.0], [0.0, 0.0, w]),
+        ([-w / 2.0, 0.0, w / 2.0], [w, 0.0, 0.0], [0.0, h, 0.0]),
+        ([w / 2.0, 0.0, -w / 2.0], [-w, 0.0, 0.0], [0.0, h, 0.0]),
+        ([w / 2.0, 0.0, w / 2.0], [0.0, 0.0, -w], [0.0, h, 0.0]),
+        ([-w / 2.0, 0.0, -w / 2.0], [0.0, 0.0, w], [0.0, h, 0.0]),
+    ];
+    for (o, u, v) in faces {
+        for j in 0..=n {
+            for i in 0..=n {
+                let (a, b) = (i as f64 / n as f64, j as f64 / n as f64);
+                let p: Vec<f64> = (0..3).map(|k| o[k] + u[k] * a + v[k] * b).collect();
+                obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let q = count + j * (n + 1) + i + 1;
+                obj += &format!("f {} {} {} {}\n", q, q + 1, q + n + 2, q + n + 1);
+            }
+        }
+        count += (n + 1) * (n + 1);
+    }
+    obj
+}
+
 #[test]
-fn the_live_window_dents_a_ball_under_the_mouse_and_keeps_its_frame_rate() {
+fn the_live_window_dents_a_block_under_the_mouse_and_keeps_its_frame_rate() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::copy(
-        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
-        dir.path().join("ball.glb"),
-    )
-    .unwrap();
+    std::fs::write(dir.path().join("block.obj"), divided_box(0.6, 0.3, 12)).unwrap();
     std::fs::write(
         dir.path().join("scene.toml"),
         "[output]\nframes = 48\n[world]\nfloor = 0.0\n\
-         [[body]]\nsource = \"ball.glb\"\ncells = 6\nmaterial = \"rubber\"\n",
+         [[body]]\nsource = \"block.obj\"\ncells = 8\nmaterial = \"soft_rubber\"\n",
     )
     .unwrap();
     let display = format!(":{}", 40 + std::process::id() % 400);
@@ -127,8 +157,8 @@ fn the_live_window_dents_a_ball_under_the_mouse_and_keeps_its_frame_rate() {
         settled = now;
     }
     let before = trace(&trace_path).last().cloned().unwrap();
-    // The mouse over the 3-D view, the wheel down: the capsule (parked above the ball) comes
-    // down onto it. The ball's top (its highest vertex, right under the capsule) is dented.
+    // The mouse over the 3-D view, the wheel down: the capsule (parked above the block) comes
+    // down onto it and dents its top under it.
     let [x, y] = [
         before["view_centre"][0].as_f64().unwrap(),
         before["view_centre"][1].as_f64().unwrap(),
@@ -160,14 +190,15 @@ fn the_live_window_dents_a_ball_under_the_mouse_and_keeps_its_frame_rate() {
         capsule(&before),
         capsule(&during)
     );
-    let lowest_top = trace(&trace_path)[pressed_from..]
+    let under = |f: &Value| f["top_under_capsule"].as_f64().unwrap_or(f64::INFINITY);
+    let lowest = trace(&trace_path)[pressed_from..]
         .iter()
-        .map(top)
+        .map(under)
         .fold(f64::INFINITY, f64::min);
     assert!(
-        top(&before) - lowest_top > 0.01,
-        "the ball's top went from {} to at lowest {lowest_top} m under the capsule",
-        top(&before)
+        under(&before) - lowest > 0.004,
+        "the block's top under the capsule went from {} to at lowest {lowest} m",
+        under(&before)
     );
     let frames = trace(&trace_path);
     let live: Vec<f64> = frames

@@ -189,29 +189,37 @@ impl ViewerApp {
             return;
         };
         let up = self.camera.up;
-        let top = meshes
-            .iter()
-            .filter(|m| m.colour == raster::BODY_COLOUR)
-            .flat_map(|m| m.positions.iter())
+        let bodies = || {
+            meshes
+                .iter()
+                .filter(|m| m.colour == raster::BODY_COLOUR)
+                .flat_map(|m| m.positions.iter())
+        };
+        let top = bodies()
             .map(|p| up.dot(p))
             .fold(f64::NEG_INFINITY, f64::max);
+        // The bodies' top within the live capsule's horizontal reach (where it presses).
+        let under = self.live.as_ref().map(|l| {
+            let c = &l.manipulator;
+            let reach = 0.5 * c.length + c.radius;
+            bodies()
+                .filter(|p| {
+                    let d = *p - c.centre;
+                    (d - up * up.dot(&d)).norm() <= reach
+                })
+                .map(|p| up.dot(p))
+                .fold(f64::NEG_INFINITY, f64::max)
+        });
         let centre = view.center() * pixels_per_point;
         let capsule = self.live.as_ref().map(|l| up.dot(&l.manipulator.centre));
-        let capsule_at = self.live.as_ref().map(|l| {
-            [
-                l.manipulator.centre.x,
-                l.manipulator.centre.y,
-                l.manipulator.centre.z,
-            ]
-        });
         let line = serde_json::json!({
             "capsule_height": capsule,
-            "capsule_at": capsule_at,
             "t": self.opened.elapsed().as_secs_f64(),
             "ui_fps": self.ui_fps,
             "live": self.live.is_some(),
             "frame": self.frame,
             "body_top": top.is_finite().then_some(top),
+            "top_under_capsule": under.filter(|u| u.is_finite()),
             "view_centre": [centre.x, centre.y],
         });
         let _ = writeln!(out, "{line}").and_then(|()| out.flush());
