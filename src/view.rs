@@ -35,7 +35,7 @@ pub struct ViewCommand {
     pub frame_all: bool,
     /// The view of --screenshot and --flipbook as YAW,PITCH in degrees (default
     /// -60,20: from the front right, a little above).
-    #[arg(long, value_name = "YAW,PITCH", value_parser = parse_angles)]
+    #[arg(long, value_name = "YAW,PITCH", value_parser = parse_angles, allow_hyphen_values = true)]
     pub camera: Option<(f64, f64)>,
     /// Open the window in live mode (a scene or mesh: the mouse drives a capsule; drag to
     /// move it, shift-drag up and down, right-drag to turn it).

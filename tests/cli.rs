@@ -483,3 +483,62 @@ fn an_html_report_is_a_self_contained_page_with_the_flipbook_and_plots() {
     }
     assert!(page.contains("<h2>Warnings</h2>"));
 }
+
+/// A baked glb records its static colliders; a screenshot of it draws them (a slab under a
+/// cube, seen from close by: large triangles are drawn in pieces, not dropped).
+#[test]
+fn a_baked_glb_shows_its_collider() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(
+        springbake_testkit::workspace_root().join("examples/cube.obj"),
+        d.join("cube.obj"),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("slab.obj"),
+        "v -3 -0.1 -3\nv 3 -0.1 -3\nv 3 -0.1 3\nv -3 -0.1 3\nv -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\n\
+         f 5 8 7 6\nf 1 2 3 4\nf 1 5 6 2\nf 2 6 7 3\nf 3 7 8 4\nf 4 8 5 1\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("scene.toml"),
+        "[output]\npath = \"out.glb\"\nframes = 12\n[[body]]\nsource = \"cube.obj\"\ncells = 4\n\
+         offset = [0.0, 0.4, 0.0]\n[[collider]]\nsource = \"slab.obj\"\n",
+    )
+    .unwrap();
+    let o = springbake(&["bake", d.join("scene.toml").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shot = d.join("shot.png");
+    let o = springbake(&[
+        "view",
+        d.join("out.glb").to_str().unwrap(),
+        "--screenshot",
+        shot.to_str().unwrap(),
+        "--frame",
+        "12",
+        "--size",
+        "320x240",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut reader = png::Decoder::new(std::io::Cursor::new(std::fs::read(&shot).unwrap()))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    let grey = buf
+        .chunks(4)
+        .filter(|p| {
+            p[0] > 90
+                && (p[0] as i32 - p[2] as i32).abs() < 30
+                && (p[1] as i32 - p[2] as i32).abs() < 30
+        })
+        .count();
+    let share = grey as f64 / (info.width * info.height) as f64;
+    assert!(
+        share > 0.1,
+        "the collider covers {:.1} % of the picture",
+        share * 100.0
+    );
+}

@@ -42,6 +42,16 @@ pub struct BakedStage {
     /// Floor height (along +Y), metres.
     pub floor: Option<f64>,
     pub capsules: Vec<BakedCapsule>,
+    /// Static colliders: triangle meshes.
+    pub colliders: Vec<BakedCollider>,
+}
+
+/// A static collider's surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BakedCollider {
+    pub name: String,
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
 }
 
 /// A capsule manipulator over the bake.

@@ -136,9 +136,10 @@ impl Exporter for GltfExporter {
 }
 
 /// The bake's surroundings as the document's `extras.springbake_stage` (Y-up metres, glTF's
-/// world frame): `floor` (height or null) and `capsules` (`radius`, `length`, and per frame
-/// `[cx, cy, cz, ax, ay, az]`: the axis segment's centre and direction), for players that draw
-/// what the bodies moved against. Other extras of the source are kept.
+/// world frame): `floor` (height or null), `capsules` (`radius`, `length`, and per frame
+/// `[cx, cy, cz, ax, ay, az]`: the axis segment's centre and direction) and `colliders`
+/// (`name`, flat `positions` and `triangles`, up to 20 000 triangles in all), for players that
+/// draw what the bodies moved against. Other extras of the source are kept.
 fn add_stage(b: &mut DocBuilder, stage: &springbake_core::bake::BakedStage) {
     let capsules: Vec<Value> = stage
         .capsules
@@ -156,8 +157,28 @@ fn add_stage(b: &mut DocBuilder, stage: &springbake_core::bake::BakedStage) {
     if !extras.is_object() {
         *extras = json!({});
     }
-    extras["springbake_stage"] = json!({"floor": stage.floor, "capsules": capsules});
+    // Colliders as flat arrays, up to a size a player can take from JSON.
+    let mut budget = MAX_STAGE_TRIANGLES;
+    let colliders: Vec<Value> = stage
+        .colliders
+        .iter()
+        .filter(|c| {
+            let fits = c.triangles.len() <= budget;
+            budget = budget.saturating_sub(c.triangles.len());
+            fits
+        })
+        .map(|c| {
+            let positions: Vec<f64> = c.positions.iter().flatten().copied().collect();
+            let triangles: Vec<u32> = c.triangles.iter().flatten().copied().collect();
+            json!({"name": c.name, "positions": positions, "triangles": triangles})
+        })
+        .collect();
+    extras["springbake_stage"] =
+        json!({"floor": stage.floor, "capsules": capsules, "colliders": colliders});
 }
+
+/// Most collider triangles recorded in a glTF's stage (the rest are left out).
+const MAX_STAGE_TRIANGLES: usize = 20_000;
 
 /// Channels and samplers of the one animation we add.
 #[derive(Default)]

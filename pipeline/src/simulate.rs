@@ -3,7 +3,9 @@
 use crate::frame::SimFrame;
 use crate::report::{BodyReport, Seconds};
 use crate::{BakeHooks, LoadedScene, PipelineError};
-use springbake_core::bake::{BakedCapsule, BakedLattice, BakedMesh, BakedScene, BakedStage};
+use springbake_core::bake::{
+    BakedCapsule, BakedCollider, BakedLattice, BakedMesh, BakedScene, BakedStage,
+};
 use springbake_core::display::{ImportedScene, SourceDocument};
 use springbake_core::lattice::{Embedding, FitSettings, Lattice, Resolution};
 use springbake_core::material::Material;
@@ -669,9 +671,20 @@ impl Prepared {
                     .collect(),
             })
             .collect();
+        let colliders = self
+            .world
+            .colliders()
+            .iter()
+            .map(|c| BakedCollider {
+                name: c.name.clone(),
+                positions: c.positions.iter().map(|p| y_up(*p)).collect(),
+                triangles: c.triangles.clone(),
+            })
+            .collect();
         BakedStage {
             floor: self.floor,
             capsules,
+            colliders,
         }
     }
 

@@ -197,9 +197,24 @@ pub fn render_frame(
     }
     let up = source.up();
     let mut meshes = source.meshes_at(frame)?;
+    // Colliders in pieces no longer than a tenth of what the camera frames (module docs of
+    // `raster::subdivided`).
+    let reach = 0.1 * camera.distance.max(1e-3);
+    for m in meshes
+        .iter_mut()
+        .filter(|m| m.colour == raster::COLLIDER_COLOUR)
+    {
+        *m = raster::subdivided(m, reach, 200_000);
+    }
     let mut hud = format!("frame {frame}  {:.2} s", (frame - 1) as f64 / source.fps());
     if let (Some(h), Some((lo, hi))) = (source.floor(), source.view_bounds()) {
-        let shadows = raster::shadow_meshes(&meshes, up, h);
+        // Bodies and capsules cast shadows; colliders are part of the ground.
+        let casters: Vec<raster::DrawMesh> = meshes
+            .iter()
+            .filter(|m| m.colour != raster::COLLIDER_COLOUR)
+            .cloned()
+            .collect();
+        let shadows = raster::shadow_meshes(&casters, up, h);
         meshes.extend(raster::floor_meshes(lo, hi, up, h));
         meshes.extend(shadows);
         hud += &format!("  grid {}", metres(raster::floor_grid_spacing(lo, hi, up)));

@@ -14,6 +14,8 @@ pub const BACKGROUND: [u8; 3] = [36, 40, 46];
 pub const BODY_COLOUR: [u8; 3] = [222, 120, 72];
 /// Colour of manipulator capsules.
 pub const CAPSULE_COLOUR: [u8; 3] = [110, 160, 230];
+/// Colour of static colliders.
+pub const COLLIDER_COLOUR: [u8; 3] = [150, 156, 168];
 
 /// A triangle mesh in world metres with one colour.
 #[derive(Debug, Clone, PartialEq)]
@@ -392,6 +394,41 @@ pub fn floor_meshes(
         );
     }
     vec![plane, grid]
+}
+
+/// `mesh` with every triangle split in four until no edge is longer than `max_edge` (at most
+/// `budget` triangles in all): the rasterizer drops a triangle with a corner behind the
+/// camera, so a large collider drawn from close by needs small pieces.
+pub fn subdivided(mesh: &DrawMesh, max_edge: f64, budget: usize) -> DrawMesh {
+    let mut positions = mesh.positions.clone();
+    let mut triangles = mesh.triangles.clone();
+    let long = |p: &[Vector3<f64>], t: &[u32; 3]| {
+        (0..3).any(|k| (p[t[k] as usize] - p[t[(k + 1) % 3] as usize]).norm() > max_edge)
+    };
+    while triangles.len() * 4 <= budget && triangles.iter().any(|t| long(&positions, t)) {
+        let mut next = Vec::with_capacity(triangles.len() * 4);
+        for t in &triangles {
+            if !long(&positions, t) {
+                next.push(*t);
+                continue;
+            }
+            let mid = |a: u32, b: u32, p: &mut Vec<Vector3<f64>>| {
+                p.push((p[a as usize] + p[b as usize]) * 0.5);
+                (p.len() - 1) as u32
+            };
+            let [a, b, c] = *t;
+            let ab = mid(a, b, &mut positions);
+            let bc = mid(b, c, &mut positions);
+            let ca = mid(c, a, &mut positions);
+            next.extend_from_slice(&[[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    DrawMesh {
+        positions,
+        triangles,
+        colour: mesh.colour,
+    }
 }
 
 /// Soft contact shadows on the floor: under each mesh, three nested discs over its footprint

@@ -4,7 +4,7 @@
 //! animation to the morph targets). A glTF without morph targets is a mesh to simulate. A
 //! lattice-skin glTF is drawn in its rest pose (skinning is not evaluated).
 
-use crate::raster::{capsule_mesh, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR};
+use crate::raster::{capsule_mesh, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR, COLLIDER_COLOUR};
 use crate::ViewerError;
 use serde_json::Value;
 use springbake_core::display::UpAxis;
@@ -94,6 +94,11 @@ impl Simulation {
                 .iter()
                 .map(|c| capsule_mesh(c, 24, 6, CAPSULE_COLOUR)),
         );
+        out.extend(self.prepared.world.colliders().iter().map(|c| DrawMesh {
+            positions: c.positions.clone(),
+            triangles: c.triangles.clone(),
+            colour: COLLIDER_COLOUR,
+        }));
         out
     }
 
@@ -128,6 +133,8 @@ pub struct BakedPlayback {
     pub floor: Option<f64>,
     /// The manipulators the bake recorded there.
     pub capsules: Vec<StageCapsule>,
+    /// The static colliders recorded there.
+    pub colliders: Vec<DrawMesh>,
 }
 
 /// A manipulator recorded in a baked glTF: per frame the axis centre and direction.
@@ -180,7 +187,7 @@ fn base_colour(doc: &GltfDocument, mesh: usize) -> Option<[u8; 3]> {
 
 /// `extras.springbake_stage` of a baked glTF (written by springbake's exporter): the floor and
 /// the capsules; absent or malformed parts are left out.
-fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>) {
+fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>, Vec<DrawMesh>) {
     let stage = &doc.json["extras"]["springbake_stage"];
     let floor = stage["floor"].as_f64().filter(|h| h.is_finite());
     let capsules = stage["capsules"]
@@ -208,7 +215,40 @@ fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>) {
             })
         })
         .collect();
-    (floor, capsules)
+    let colliders = stage["colliders"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|c| {
+            let flat: Vec<f64> = c["positions"]
+                .as_array()?
+                .iter()
+                .filter_map(Value::as_f64)
+                .collect();
+            let index: Vec<u32> = c["triangles"]
+                .as_array()?
+                .iter()
+                .filter_map(|i| i.as_u64().and_then(|i| u32::try_from(i).ok()))
+                .collect();
+            let positions: Vec<Vector3<f64>> = flat
+                .chunks_exact(3)
+                .map(|p| Vector3::new(p[0], p[1], p[2]))
+                .collect();
+            let count = positions.len() as u32;
+            let triangles: Vec<[u32; 3]> = index
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .filter(|t| t.iter().all(|&i| i < count))
+                .collect();
+            (!triangles.is_empty() && positions.iter().all(|p| p.iter().all(|x| x.is_finite())))
+                .then_some(DrawMesh {
+                    positions,
+                    triangles,
+                    colour: COLLIDER_COLOUR,
+                })
+        })
+        .collect();
+    (floor, capsules, colliders)
 }
 
 impl BakedPlayback {
@@ -423,6 +463,7 @@ impl ViewSource {
                         .filter_map(|c| c.at(frame))
                         .map(|c| capsule_mesh(&c, 24, 6, CAPSULE_COLOUR)),
                 );
+                meshes.extend(b.colliders.iter().cloned());
                 Ok(meshes)
             }
         }
@@ -590,12 +631,13 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
             colour,
         });
     }
-    let (floor, capsules) = read_stage(&doc);
+    let (floor, capsules, colliders) = read_stage(&doc);
     Ok(Some(BakedPlayback {
         meshes,
         frame_count,
         fps,
         floor,
         capsules,
+        colliders,
     }))
 }
