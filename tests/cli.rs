@@ -3,7 +3,7 @@
 
 mod support;
 
-use support::{corpus, springbake, stderr};
+use support::{corpus, decode_png, springbake, stderr};
 
 #[test]
 fn demo_bakes_a_valid_gltf_with_a_manipulator_hit() {
@@ -277,9 +277,8 @@ fn the_demo_and_view_write_flipbooks_and_sheets() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(count_frames(&part), 10);
-    let decoder = png::Decoder::new(std::io::Cursor::new(std::fs::read(&sheet).unwrap()));
-    let info = decoder.read_info().unwrap().info().clone();
-    assert_eq!((info.width, info.height), (4 * 320, 240 + 22));
+    let (w, h, _) = decode_png(&std::fs::read(&sheet).unwrap());
+    assert_eq!((w, h), (4 * 320, 240 + 22));
 
     let o = springbake(&[
         "view",
@@ -345,15 +344,7 @@ fn the_demo_screenshot_shows_the_ball_large_with_the_floor_and_the_capsule() {
         "320x240",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let decode = |bytes: Vec<u8>| {
-        let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
-            .read_info()
-            .unwrap();
-        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-        let info = reader.next_frame(&mut buf).unwrap();
-        buf.truncate(info.buffer_size());
-        (info.width, info.height, buf)
-    };
+    let decode = |bytes: Vec<u8>| decode_png(&bytes);
     let shot = std::fs::read(&png_path).unwrap();
     let (w, h, rgba) = decode(shot.clone());
     assert_eq!((w, h), (320, 240));
@@ -521,12 +512,7 @@ fn a_baked_glb_shows_its_collider() {
         "320x240",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let mut reader = png::Decoder::new(std::io::Cursor::new(std::fs::read(&shot).unwrap()))
-        .read_info()
-        .unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    buf.truncate(info.buffer_size());
+    let (width, height, buf) = decode_png(&std::fs::read(&shot).unwrap());
     let grey = buf
         .chunks(4)
         .filter(|p| {
@@ -535,7 +521,7 @@ fn a_baked_glb_shows_its_collider() {
                 && (p[1] as i32 - p[2] as i32).abs() < 30
         })
         .count();
-    let share = grey as f64 / (info.width * info.height) as f64;
+    let share = grey as f64 / (width * height) as f64;
     assert!(
         share > 0.1,
         "the collider covers {:.1} % of the picture",

@@ -7,6 +7,20 @@
 use springbake_testkit::{assert_gltf_valid, last_json_line, run_python_client};
 use std::process::Command;
 
+fn bake(obj: &std::path::Path, glb: &std::path::Path, frames: &str) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args([
+            "bake",
+            obj.to_str().unwrap(),
+            "-o",
+            glb.to_str().unwrap(),
+            "--frames",
+            frames,
+        ])
+        .output()
+        .unwrap()
+}
+
 fn look(file: &std::path::Path) -> serde_json::Value {
     last_json_line(&run_python_client(
         "obj_materials_blender.py",
@@ -21,21 +35,11 @@ fn blender_sees_the_objs_materials_in_the_baked_gltf() {
     run_python_client("obj_materials_blender.py", &["make", d.to_str().unwrap()]);
     let obj = d.join("props.obj");
     let glb = d.join("props.glb");
-    let bake = Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args([
-            "bake",
-            obj.to_str().unwrap(),
-            "-o",
-            glb.to_str().unwrap(),
-            "--frames",
-            "6",
-        ])
-        .output()
-        .unwrap();
+    let baked_once = bake(&obj, &glb, "6");
     assert!(
-        bake.status.success(),
+        baked_once.status.success(),
         "{}",
-        String::from_utf8_lossy(&bake.stderr)
+        String::from_utf8_lossy(&baked_once.stderr)
     );
     assert_gltf_valid(&glb);
     let source = look(&obj);
@@ -69,17 +73,7 @@ fn blender_sees_the_objs_materials_in_the_baked_gltf() {
 
     // Without its .mtl the OBJ still bakes, grey, and says why.
     std::fs::remove_file(d.join("props.mtl")).unwrap();
-    let bare = Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args([
-            "bake",
-            obj.to_str().unwrap(),
-            "-o",
-            glb.to_str().unwrap(),
-            "--frames",
-            "2",
-        ])
-        .output()
-        .unwrap();
+    let bare = bake(&obj, &glb, "2");
     let err = String::from_utf8_lossy(&bare.stderr);
     assert!(bare.status.success(), "{err}");
     assert!(

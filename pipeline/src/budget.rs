@@ -26,16 +26,20 @@ fn bytes_per_node(integrator: IntegratorSpec) -> u64 {
 /// Bytes per display vertex and output frame at peak, by output format (measured: glTF 76,
 /// point caches 35, USD 112, plus usd-core's own 100 MB).
 fn bytes_per_vertex_frame(output: &Path) -> (u64, u64) {
-    let ext = output
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    match ext.as_str() {
+    match extension(output).as_str() {
         "pc2" | "mdd" => (40, 0),
         "usda" | "usdc" | "usd" | "usdz" => (128, 160 << 20),
         _ => (88, 0),
     }
+}
+
+/// The output's extension, lower case (`""` without one).
+fn extension(output: &Path) -> String {
+    output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 /// Memory every run needs besides the bake (the binary, its libraries, the imported scene).
@@ -137,12 +141,7 @@ pub const LARGE_OUTPUT_BYTES: u64 = 100 << 20;
 /// `None` where the size does not grow that way (the skin and compact caches).
 fn disk_bytes_per_vertex_frame(scene: &SceneFile, output: &Path) -> Option<f64> {
     use springbake_core::scene::CacheSpec;
-    let ext = output
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    match ext.as_str() {
+    match extension(output).as_str() {
         "pc2" | "mdd" => Some(12.0),
         "usda" => Some(60.0),
         "usdc" | "usd" | "usdz" => Some(24.0),

@@ -32,3 +32,15 @@ pub fn cube(dir: &Path, name: &str) -> PathBuf {
     .expect("copy the example cube");
     path
 }
+
+/// A PNG's width, height and RGBA bytes.
+#[allow(dead_code)]
+pub fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes.to_vec()))
+        .read_info()
+        .expect("a PNG");
+    let mut buf = vec![0; reader.output_buffer_size().expect("a sized PNG")];
+    let info = reader.next_frame(&mut buf).expect("a PNG frame");
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
