@@ -1,7 +1,7 @@
-//! OBJ materials survive a bake (issue 19 item 1): Blender writes an OBJ with a `.mtl` (a
-//! textured material and a plain blue one), springbake bakes it to glTF, and Blender sees the
-//! same objects, materials, base colours (within 1/255), textures and UV layers in the bake as
-//! in the OBJ. A missing `.mtl` is a note, not a failure.
+//! OBJ materials survive a bake (issue 19 items 1 and 2): Blender writes an OBJ with a `.mtl`
+//! (a textured material and a plain blue one), springbake bakes it to glTF and to USD, and
+//! Blender sees the same objects, materials, base colours (within 1/255) and UV layers in the
+//! bakes as in the OBJ, and the texture in the glTF. A missing `.mtl` is a note, not a failure.
 #![allow(clippy::unwrap_used)]
 
 use springbake_testkit::{assert_gltf_valid, last_json_line, run_python_client};
@@ -79,5 +79,40 @@ fn blender_sees_the_objs_materials_in_the_baked_gltf() {
     assert!(
         err.contains("props.mtl") && err.contains("left grey"),
         "{err}"
+    );
+}
+
+/// One OBJ object with two materials bakes to one USD mesh with a GeomSubset per material:
+/// Blender sees one object with both materials and their colours.
+#[test]
+fn an_objects_materials_become_usd_geom_subsets() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("two.mtl"),
+        "newmtl A\nKd 1 0 0\nnewmtl B\nKd 0 0 1\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("two.obj"),
+        "mtllib two.mtl\no Box\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\n\
+         v 0 1 1\nusemtl A\nf 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nusemtl B\nf 2 3 7 6\nf 3 4 8 7\n\
+         f 4 1 5 8\n",
+    )
+    .unwrap();
+    let usda = d.join("two.usda");
+    let o = bake(&d.join("two.obj"), &usda, "3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&usda).unwrap();
+    assert_eq!(text.matches("def GeomSubset").count(), 2, "{text}");
+    let seen = look(&usda);
+    assert_eq!(seen["objects"], 1, "{seen}");
+    assert_eq!(
+        seen["materials"]["A"]["colour"],
+        serde_json::json!([1.0, 0.0, 0.0, 1.0])
+    );
+    assert_eq!(
+        seen["materials"]["B"]["colour"],
+        serde_json::json!([0.0, 0.0, 1.0, 1.0])
     );
 }

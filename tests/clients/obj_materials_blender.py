@@ -4,7 +4,7 @@ Usage:
   python obj_materials_blender.py make FOLDER   writes FOLDER/props.obj (+ .mtl + texture) with
                                                 Blender's OBJ exporter: a textured "Brick" cube
                                                 and a plain "Blue" sphere
-  python obj_materials_blender.py look FILE     imports FILE (.obj or .glb) and prints what
+  python obj_materials_blender.py look FILE     imports FILE (.obj, .glb or .usda) and prints what
                                                 Blender sees: visible mesh objects, each
                                                 material's base colour (when not textured) and
                                                 whether it is textured, UV layers per object
@@ -56,6 +56,8 @@ def look(path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if path.endswith(".obj"):
         bpy.ops.wm.obj_import(filepath=path)
+    elif path.endswith((".usda", ".usdc", ".usd")):
+        bpy.ops.wm.usd_import(filepath=path)
     else:
         bpy.ops.import_scene.gltf(filepath=path)
     visible = [o for o in bpy.context.scene.objects if o.type == "MESH" and o.visible_get()]

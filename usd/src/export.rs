@@ -21,7 +21,9 @@ use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::{BakedMesh, BakedScene};
-use springbake_core::display::{vertex_normals, DisplayMesh, ImportedScene, UpAxis};
+use springbake_core::display::{
+    vertex_normals, DisplayMesh, ImportedScene, SurfaceMaterial, UpAxis,
+};
 use springbake_core::plugin::{ExportSettings, Exporter, IoErrorKind, OutputFile, PluginError};
 use std::collections::HashSet;
 use std::path::Path;
@@ -183,6 +185,49 @@ fn frames_dict<'py>(py: Python<'py>, f: &Frames) -> PyResult<Bound<'py, PyDict>>
     Ok(d)
 }
 
+/// The materials the exported meshes name, with their looks (the source's description, else
+/// the grey a name alone gets), each with a unique prim name.
+fn material_looks(
+    scene: &ImportedScene,
+    items: &[(&BakedMesh, &DisplayMesh)],
+) -> Vec<(String, SurfaceMaterial)> {
+    let mut taken = HashSet::new();
+    let mut out: Vec<(String, SurfaceMaterial)> = Vec::new();
+    for (_, mesh) in items {
+        for name in mesh.primitives.iter().filter_map(|p| p.material.as_ref()) {
+            if out.iter().any(|(_, m)| &m.name == name) {
+                continue;
+            }
+            let look = scene
+                .materials
+                .iter()
+                .find(|m| &m.name == name)
+                .cloned()
+                .unwrap_or_else(|| SurfaceMaterial {
+                    name: name.clone(),
+                    ..SurfaceMaterial::default()
+                });
+            out.push((prim_name(name, &mut taken), look));
+        }
+    }
+    out
+}
+
+/// `(material name, first face, face count)` of each primitive that names a material, faces
+/// counted over the mesh's triangles (primitive after primitive, as written).
+fn material_faces(mesh: &DisplayMesh) -> Vec<(String, usize, usize)> {
+    let mut start = 0;
+    let mut out = Vec::new();
+    for p in &mesh.primitives {
+        let count = p.triangle_count();
+        if let Some(name) = &p.material {
+            out.push((name.clone(), start, count));
+        }
+        start += count;
+    }
+    out
+}
+
 /// A prim name from a mesh name: letters, digits and `_`, not starting with a digit, unique.
 pub fn prim_name(name: &str, taken: &mut HashSet<String>) -> String {
     let mut base: String = name
@@ -324,12 +369,18 @@ impl UsdExporter {
             })
         } else {
             let mut taken = HashSet::new();
+            let looks = material_looks(scene, &items);
             with_bridge(out, |py, bridge| {
                 let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Io, out);
                 let list = PyList::empty(py);
                 for (bm, mesh) in &items {
                     let frames = display_frames(bm, mesh);
                     let d = frames_dict(py, &frames).map_err(to_err)?;
+                    let subsets = PyList::empty(py);
+                    for (name, start, count) in material_faces(mesh) {
+                        subsets.append((name, start, count)).map_err(to_err)?;
+                    }
+                    d.set_item("material_faces", subsets).map_err(to_err)?;
                     d.set_item("name", prim_name(&mesh.name, &mut taken))
                         .map_err(to_err)?;
                     // nalgebra stores column-major: M's columns are Gf's rows (Mᵀ row-major).
@@ -370,8 +421,19 @@ impl UsdExporter {
                     }
                     list.append(d).map_err(to_err)?;
                 }
+                let materials = PyList::empty(py);
+                for (prim, look) in &looks {
+                    let m = PyDict::new(py);
+                    m.set_item("name", &look.name).map_err(to_err)?;
+                    m.set_item("prim", prim).map_err(to_err)?;
+                    m.set_item("base_colour", look.base_colour.to_vec())
+                        .map_err(to_err)?;
+                    m.set_item("roughness", look.roughness).map_err(to_err)?;
+                    materials.append(m).map_err(to_err)?;
+                }
                 let spec = PyDict::new(py);
                 spec.set_item("meshes", list).map_err(to_err)?;
+                spec.set_item("materials", materials).map_err(to_err)?;
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
                 spec.set_item("frame_count", baked.frame_count)
                     .map_err(to_err)?;

@@ -340,12 +340,59 @@ def _matrix_from_bytes(data):
     return Gf.Matrix4d(*values)
 
 
+def _define_materials(stage, materials):
+    """UsdPreviewSurface materials under /root/Looks, by material name: diffuse colour,
+    opacity, roughness, metallic 0 (what Blender's USD importer turns into a Principled BSDF)."""
+    looks = {}
+    if not materials:
+        return looks
+    UsdGeom.Scope.Define(stage, "/root/Looks")
+    for m in materials:
+        path = "/root/Looks/" + m["prim"]
+        material = UsdShade.Material.Define(stage, path)
+        shader = UsdShade.Shader.Define(stage, path + "/PreviewSurface")
+        shader.CreateIdAttr("UsdPreviewSurface")
+        r, g, b, a = (float(c) for c in m["base_colour"])
+        shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(r, g, b))
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
+        shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m["roughness"]))
+        shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
+        material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+        looks[m["name"]] = material
+    return looks
+
+
+def _bind_materials(mesh, faces, looks, face_count):
+    """Binds the mesh's materials: the whole mesh when one covers every face, else one
+    GeomSubset per material (family materialBind)."""
+    faces = [(name, int(start), int(count)) for name, start, count in faces if name in looks]
+    if not faces:
+        return
+    if len(faces) == 1 and faces[0][1] == 0 and faces[0][2] == face_count:
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(looks[faces[0][0]])
+        return
+    by_name = {}
+    for name, start, count in faces:
+        by_name.setdefault(name, []).extend(range(start, start + count))
+    for k, (name, indices) in enumerate(by_name.items()):
+        subset = UsdGeom.Subset.CreateGeomSubset(
+            mesh,
+            "material_%d" % k,
+            UsdGeom.Tokens.face,
+            Vt.IntArray(indices),
+            "materialBind",
+            UsdGeom.Tokens.nonOverlapping,
+        )
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(looks[name])
+
+
 def write_new_stage(out_path, spec):
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if spec["up_axis"] == "Z" else UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, float(spec["meters_per_unit"]))
     root = UsdGeom.Xform.Define(stage, "/root")
     stage.SetDefaultPrim(root.GetPrim())
+    looks = _define_materials(stage, spec.get("materials"))
     frame_count = int(spec["frame_count"])
     for item in spec["meshes"]:
         xform_path = "/root/" + item["name"]
@@ -364,6 +411,8 @@ def write_new_stage(out_path, spec):
                 "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex
             )
             st.Set(_vec2f_array(item["uvs"], n))
+        face_count = len(memoryview(item["counts"]).cast("B")) // 4
+        _bind_materials(mesh, item.get("material_faces") or [], looks, face_count)
         _author_frames(mesh, item, frame_count, location)
     _set_stage_timing(stage, spec)
     _export(stage, out_path)
