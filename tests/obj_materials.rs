@@ -1,7 +1,7 @@
 //! OBJ materials survive a bake (issue 19 items 1 and 2): Blender writes an OBJ with a `.mtl`
 //! (a textured material and a plain blue one), springbake bakes it to glTF and to USD, and
-//! Blender sees the same objects, materials, base colours (within 1/255) and UV layers in the
-//! bakes as in the OBJ, and the texture in the glTF. A missing `.mtl` is a note, not a failure.
+//! Blender sees the same objects, materials, base colours (within 1/255), textures and UV
+//! layers in the bakes as in the OBJ. A missing `.mtl` is a note, not a failure.
 #![allow(clippy::unwrap_used)]
 
 use springbake_testkit::{assert_gltf_valid, last_json_line, run_python_client};

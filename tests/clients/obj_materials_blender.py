@@ -68,7 +68,11 @@ def look(path):
             if m is None or not m.use_nodes:
                 continue
             bsdf = next((n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
-            textured = any(n.type == "TEX_IMAGE" and n.image for n in m.node_tree.nodes)
+            # Textured: an image node whose file loaded (a missing file has no pixels).
+            textured = any(
+                n.type == "TEX_IMAGE" and n.image and n.image.size[0] > 0
+                for n in m.node_tree.nodes
+            )
             base = bsdf.inputs["Base Color"] if bsdf else None
             colour = list(base.default_value) if base is not None and not base.is_linked else None
             materials[m.name] = {"colour": colour, "textured": textured}

@@ -22,7 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::{BakedMesh, BakedScene};
 use springbake_core::display::{
-    vertex_normals, DisplayMesh, ImportedScene, SurfaceMaterial, UpAxis,
+    vertex_normals, DisplayMesh, ImportedScene, SurfaceMaterial, TextureImage, UpAxis,
 };
 use springbake_core::plugin::{ExportSettings, Exporter, IoErrorKind, OutputFile, PluginError};
 use std::collections::HashSet;
@@ -213,6 +213,50 @@ fn material_looks(
     out
 }
 
+/// The base-colour images of the scene's materials as `(material name, path relative to the
+/// output, image)`: `<output stem>_textures/<image file name>`, names made unique.
+fn texture_files<'a>(
+    scene: &'a ImportedScene,
+    out: &Path,
+) -> Vec<(String, String, &'a TextureImage)> {
+    let stem = out
+        .file_stem()
+        .map_or_else(|| "baked".to_owned(), |s| s.to_string_lossy().into_owned());
+    let mut taken = HashSet::new();
+    scene
+        .materials
+        .iter()
+        .filter_map(|m| m.base_colour_texture.as_ref().map(|t| (&m.name, t)))
+        .map(|(material, image)| {
+            let file = Path::new(&image.name).file_name().map_or_else(
+                || "texture".to_owned(),
+                |f| f.to_string_lossy().into_owned(),
+            );
+            let (base, ext) = match file.rsplit_once('.') {
+                Some((b, e)) => (b.to_owned(), format!(".{e}")),
+                None => (file.clone(), String::new()),
+            };
+            let clean: String = base
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '-' {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            let mut name = format!("{clean}{ext}");
+            let mut k = 1;
+            while !taken.insert(name.clone()) {
+                name = format!("{clean}_{k}{ext}");
+                k += 1;
+            }
+            (material.clone(), format!("{stem}_textures/{name}"), image)
+        })
+        .collect()
+}
+
 /// `(material name, first face, face count)` of each primitive that names a material, faces
 /// counted over the mesh's triangles (primitive after primitive, as written).
 fn material_faces(mesh: &DisplayMesh) -> Vec<(String, usize, usize)> {
@@ -370,6 +414,11 @@ impl UsdExporter {
         } else {
             let mut taken = HashSet::new();
             let looks = material_looks(scene, &items);
+            let textures = if output_extension(out)? == "usdz" {
+                Vec::new()
+            } else {
+                texture_files(scene, out)
+            };
             with_bridge(out, |py, bridge| {
                 let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Io, out);
                 let list = PyList::empty(py);
@@ -429,6 +478,11 @@ impl UsdExporter {
                     m.set_item("base_colour", look.base_colour.to_vec())
                         .map_err(to_err)?;
                     m.set_item("roughness", look.roughness).map_err(to_err)?;
+                    let texture = textures
+                        .iter()
+                        .find(|(material, _, _)| material == &look.name)
+                        .map(|(_, rel, _)| format!("./{rel}"));
+                    m.set_item("texture", texture).map_err(to_err)?;
                     materials.append(m).map_err(to_err)?;
                 }
                 let spec = PyDict::new(py);
@@ -487,11 +541,22 @@ impl Exporter for UsdExporter {
                 format!("reading back usd-core's output {}: {e}", temp.display()),
             )
         })?;
-        // `dir` is deleted when it goes out of scope.
-        Ok(vec![OutputFile {
+        let mut files = vec![OutputFile {
             path: out.to_path_buf(),
             bytes,
-        }])
+        }];
+        // Texture images beside a new stage, where its materials' asset paths point.
+        if scene.source.importer != "usd" && ext != "usdz" {
+            let folder = out.parent().unwrap_or(Path::new(""));
+            for (_, rel, image) in texture_files(scene, out) {
+                files.push(OutputFile {
+                    path: folder.join(rel),
+                    bytes: image.bytes.clone(),
+                });
+            }
+        }
+        // `dir` is deleted when it goes out of scope.
+        Ok(files)
     }
 }
 

@@ -353,7 +353,22 @@ def _define_materials(stage, materials):
         shader = UsdShade.Shader.Define(stage, path + "/PreviewSurface")
         shader.CreateIdAttr("UsdPreviewSurface")
         r, g, b, a = (float(c) for c in m["base_colour"])
-        shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(r, g, b))
+        diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+        diffuse.Set(Gf.Vec3f(r, g, b))
+        if m.get("texture"):
+            # The image through the mesh's `st`, scaled by the colour (white when textured).
+            reader = UsdShade.Shader.Define(stage, path + "/stReader")
+            reader.CreateIdAttr("UsdPrimvarReader_float2")
+            reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+            image = UsdShade.Shader.Define(stage, path + "/BaseColour")
+            image.CreateIdAttr("UsdUVTexture")
+            image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(m["texture"])
+            image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
+                reader.ConnectableAPI(), "result"
+            )
+            image.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(r, g, b, 1.0))
+            image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+            diffuse.ConnectToSource(image.ConnectableAPI(), "rgb")
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
         shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m["roughness"]))
         shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
