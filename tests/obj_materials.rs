@@ -82,6 +82,32 @@ fn blender_sees_the_objs_materials_in_the_baked_gltf() {
     );
 }
 
+/// A glTF's materials reach a USD bake too: Blender's glTF of the same props, baked to USD,
+/// shows the texture and the blue as Blender's import of the glTF does.
+#[test]
+fn a_gltfs_materials_reach_a_usd_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run_python_client("obj_materials_blender.py", &["make", d.to_str().unwrap()]);
+    let usda = d.join("from_gltf.usda");
+    let o = bake(&d.join("props.glb"), &usda, "4");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = look(&d.join("props.glb"));
+    let got = look(&usda);
+    assert_eq!(got["objects"], want["objects"], "{got}");
+    assert_eq!(got["materials"]["Brick"]["textured"], true, "{got}");
+    let (w, g) = (
+        &want["materials"]["Blue"]["colour"],
+        &got["materials"]["Blue"]["colour"],
+    );
+    for (a, b) in w.as_array().unwrap().iter().zip(g.as_array().unwrap()) {
+        assert!(
+            (a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= 1.0 / 255.0,
+            "{w} vs {g}"
+        );
+    }
+}
+
 /// One OBJ object with two materials bakes to one USD mesh with a GeomSubset per material:
 /// Blender sees one object with both materials and their colours.
 #[test]

@@ -17,7 +17,9 @@ use accessor::{read_indices, read_vec};
 use document::{get_usize, load_document, GltfDocument};
 use nalgebra::{Matrix4, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde_json::Value;
-use springbake_core::display::{DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis};
+use springbake_core::display::{
+    DisplayMesh, ImportedScene, Primitive, SourceDocument, SurfaceMaterial, TextureImage, UpAxis,
+};
 use springbake_core::plugin::{ImportSettings, Importer, PluginError};
 use std::path::Path;
 
@@ -48,9 +50,10 @@ impl Importer for GltfImporter {
                 "the scene has no node with a mesh: nothing to simulate",
             ));
         }
+        let (materials, notes) = surface_materials(&doc);
         Ok(ImportedScene {
-            materials: Vec::new(),
-            notes: Vec::new(),
+            materials,
+            notes,
             meshes,
             up_axis: UpAxis::Y,
             meters_per_unit: 1.0,
@@ -406,4 +409,104 @@ fn check_position_type(doc: &GltfDocument, index: usize) -> Result<(), PluginErr
             component.map_or("nothing".to_owned(), |c| c.to_string())
         ),
     ))
+}
+
+/// The document's materials as [`SurfaceMaterial`]s (for exporters that build a new document:
+/// USD): `baseColorFactor`, `roughnessFactor`, the base colour image (from a buffer view, a
+/// `data:` URI or a file beside the source), named as the primitives name them. An image that
+/// cannot be read is left out with a note.
+fn surface_materials(doc: &GltfDocument) -> (Vec<SurfaceMaterial>, Vec<String>) {
+    let mut notes = Vec::new();
+    let materials = doc
+        .array("materials")
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let pbr = &m["pbrMetallicRoughness"];
+            let mut look = SurfaceMaterial {
+                name: m["name"]
+                    .as_str()
+                    .map_or_else(|| format!("material_{i}"), str::to_owned),
+                ..SurfaceMaterial::default()
+            };
+            if let Some(c) = pbr["baseColorFactor"].as_array() {
+                let c: Vec<f32> = c
+                    .iter()
+                    .filter_map(|x| x.as_f64())
+                    .map(|x| x as f32)
+                    .collect();
+                if c.len() == 4 && c.iter().all(|x| x.is_finite()) {
+                    look.base_colour = [c[0], c[1], c[2], c[3]];
+                }
+            } else {
+                look.base_colour = [1.0; 4];
+            }
+            if let Some(r) = pbr["roughnessFactor"].as_f64().filter(|r| r.is_finite()) {
+                look.roughness = r.clamp(0.0, 1.0) as f32;
+            } else {
+                look.roughness = 1.0;
+            }
+            let location = format!("materials[{i}].pbrMetallicRoughness.baseColorTexture");
+            if let Some(t) = pbr["baseColorTexture"]["index"].as_u64() {
+                match texture_image(doc, t as usize, &location) {
+                    Ok(image) => look.base_colour_texture = image,
+                    Err(e) => notes.push(format!("{location}: {e}; left out")),
+                }
+            }
+            look
+        })
+        .collect();
+    (materials, notes)
+}
+
+/// The image behind texture `t`, when its source is a PNG or JPEG.
+fn texture_image(
+    doc: &GltfDocument,
+    t: usize,
+    location: &str,
+) -> Result<Option<TextureImage>, PluginError> {
+    let Some(source) = doc
+        .array("textures")
+        .get(t)
+        .and_then(|t| get_usize(t, "source"))
+    else {
+        return Ok(None);
+    };
+    let image = doc.get("images", source, location)?;
+    let bytes = if let Some(view) = get_usize(image, "bufferView") {
+        let v = doc.get("bufferViews", view, location)?;
+        let buffer = get_usize(v, "buffer").unwrap_or(0);
+        let offset = get_usize(v, "byteOffset").unwrap_or(0);
+        let length = get_usize(v, "byteLength").unwrap_or(0);
+        doc.buffers
+            .get(buffer)
+            .and_then(|b| b.get(offset..offset.checked_add(length)?))
+            .ok_or_else(|| doc.error(location, "the image's bufferView is out of its buffer"))?
+            .to_vec()
+    } else if let Some(uri) = image["uri"].as_str() {
+        doc.load_uri(uri, location)?
+    } else {
+        return Ok(None);
+    };
+    let mime = if bytes.starts_with(b"\x89PNG") {
+        "image/png"
+    } else if bytes.starts_with(&[0xFF, 0xD8]) {
+        "image/jpeg"
+    } else {
+        return Ok(None);
+    };
+    Ok(Some(TextureImage {
+        name: image["name"].as_str().map_or_else(
+            || format!("image_{source}.{}", &mime[6..]),
+            |n| {
+                if n.contains('.') {
+                    n.to_owned()
+                } else {
+                    format!("{n}.{}", &mime[6..])
+                }
+            },
+        ),
+        mime: mime.to_owned(),
+        bytes,
+    }))
 }

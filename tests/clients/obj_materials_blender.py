@@ -2,8 +2,9 @@
 
 Usage:
   python obj_materials_blender.py make FOLDER   writes FOLDER/props.obj (+ .mtl + texture) with
-                                                Blender's OBJ exporter: a textured "Brick" cube
-                                                and a plain "Blue" sphere
+                                                Blender's OBJ exporter, and props.glb with its
+                                                glTF exporter: a textured "Brick" cube and a
+                                                plain "Blue" sphere
   python obj_materials_blender.py look FILE     imports FILE (.obj, .glb or .usda) and prints what
                                                 Blender sees: visible mesh objects, each
                                                 material's base colour (when not textured) and
@@ -49,6 +50,7 @@ def make(folder):
         export_materials=True,
         path_mode="RELATIVE",
     )
+    bpy.ops.export_scene.gltf(filepath=os.path.join(folder, "props.glb"))
     return {"made": sorted(os.listdir(folder))}
 
 
