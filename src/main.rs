@@ -20,14 +20,18 @@ use std::path::{Path, PathBuf};
 #[command(
     name = "springbake",
     version,
-    about = "Soft-body baking: import a mesh, simulate it as a mass-spring lattice, bake the wobble back.",
-    long_about = "springbake imports a mesh (glTF, OBJ, USD), fits a cubic mass-spring lattice around it, \
-simulates it (Miyazaki et al. 1996: springs in real material units, elastic-layer contact with the \
-floor, walls and a capsule manipulator, the velocity-dispersion fusion model) and bakes the motion \
-back: glTF morph targets (default), USD time samples, PC2/MDD point caches or a lattice-skin glTF.\n\n\
-Quick start:\n  springbake demo                      bake the built-in demo to out/demo.glb\n  \
+    about = "Soft-body baking: import a mesh, simulate it in real material units, bake the wobble back.",
+    long_about = "springbake imports a mesh (glTF, OBJ, USD), fits a cubic lattice around it, \
+simulates it in real material units (Young's modulus, Poisson's ratio, density: small-step XPBD \
+with volumetric cells, contact with the floor, walls, colliders and a capsule manipulator as \
+constraints; the mass-spring models of Miyazaki 1996 and Terasawa 1993 on request) and bakes the \
+motion back: glTF morph targets (default), USD time samples, PC2/MDD point caches, a compact \
+PCA or lattice-skin glTF.\n\n\
+Quick start:\n  springbake demo                      bake the built-in demo to out/demo.glb (+ a GIF)\n  \
 springbake bake suzanne.glb          drop a mesh on the floor, write suzanne.baked.glb\n  \
-springbake bake scene.toml           bake a scene file (see docs/scene.md)"
+springbake bake scene.toml           bake a scene file (see docs/scene.md)\n  \
+springbake wedge scene.toml --vary 'body[0].material=jelly,rubber'   bake variants side by side\n  \
+springbake view out/demo.glb         look at a bake (--flipbook out.gif, --screenshot out.png)"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -71,9 +75,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Progress::Auto)]
         progress: Progress,
     },
-    /// Bake every combination of varied settings ("wedging"): `--vary
-    /// 'body[0].material=jelly,rubber' --vary 'body[0].velocity=[0,-2,0],[0,-6,0]'` (and the
-    /// scene's `[wedge]` table) give the cartesian product; each variant goes to
+    /// Bake every combination of varied settings ("wedging"), with an index and a contact sheet.
+    ///
+    /// `--vary 'body[0].material=jelly,rubber' --vary 'body[0].velocity=[0,-2,0],[0,-6,0]'`
+    /// (and the scene's `[wedge]` table) give the cartesian product; each variant goes to
     /// OUT/<index>/ (scene.toml, outputs, report.json), with OUT/index.json and a contact
     /// sheet PNG of every variant. Reruns skip variants whose inputs and outputs are unchanged.
     Wedge(wedge::WedgeArgs),
@@ -110,8 +115,11 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Open the interactive viewer (orbit, play/scrub, lattice overlay, live mode with a
-    /// mouse-driven capsule, parameter panel, live reload), or render one frame to a PNG.
+    /// Open the interactive viewer, or render a screenshot, flipbook or contact sheet offscreen.
+    ///
+    /// The window: orbit, play/scrub, lattice overlay, live mode with a mouse-driven capsule,
+    /// parameter panel, live reload. Offscreen (no GPU or display): --screenshot, --flipbook,
+    /// --sheet.
     View(view::ViewCommand),
 }
 
