@@ -109,7 +109,8 @@ fn a_gltfs_materials_reach_a_usd_bake() {
 }
 
 /// One OBJ object with two materials bakes to one USD mesh with a GeomSubset per material:
-/// Blender sees one object with both materials and their colours.
+/// Blender sees one object with both materials and their colours; baked again from that USD
+/// to glTF (the subsets read back as primitives), Blender sees the same.
 #[test]
 fn an_objects_materials_become_usd_geom_subsets() {
     let dir = tempfile::tempdir().unwrap();

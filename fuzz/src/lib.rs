@@ -124,6 +124,16 @@ pub fn usd_mesh(data: &[u8]) {
         st,
         left_handed: next() & 1 == 1,
         material: None,
+        // Some faces (possibly out of range) bound to a second material.
+        subsets: {
+            let n = next() % 4;
+            let faces: Vec<i32> = (0..n).map(|_| i32::from(next()) - 8).collect();
+            if faces.is_empty() {
+                Vec::new()
+            } else {
+                vec![("Subset".into(), faces)]
+            }
+        },
         world_gf: [
             1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
         ],

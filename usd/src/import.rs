@@ -4,7 +4,7 @@
 use crate::mesh::{build_display_mesh, Interpolation, RawMesh, RawPrimvar};
 use crate::python::{floats_of, ints_of, plugin_error, with_bridge};
 use pyo3::prelude::*;
-use springbake_core::display::{ImportedScene, SourceDocument, UpAxis};
+use springbake_core::display::{ImportedScene, SourceDocument, SurfaceMaterial, UpAxis};
 use springbake_core::plugin::{ImportSettings, Importer, IoErrorKind, PluginError};
 use std::path::{Path, PathBuf};
 
@@ -14,6 +14,8 @@ pub struct RawStage {
     pub up_axis: UpAxis,
     pub meters_per_unit: f64,
     pub meshes: Vec<RawMesh>,
+    /// The bound materials' UsdPreviewSurface looks.
+    pub materials: Vec<SurfaceMaterial>,
 }
 
 fn primvar(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Option<RawPrimvar>> {
@@ -28,6 +30,17 @@ fn primvar(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Option<RawPrimvar>> {
         interpolation,
         values: floats_of(&obj.get_item("values")?)?,
     }))
+}
+
+/// `[(material name, face indices), …]` from the bridge's `subsets`.
+fn subsets_of(obj: &Bound<'_, PyAny>) -> PyResult<Vec<(String, Vec<i32>)>> {
+    let mut out = Vec::new();
+    for item in obj.try_iter()? {
+        let item = item?;
+        let name: String = item.get_item(0)?.extract()?;
+        out.push((name, ints_of(&item.get_item(1)?)?));
+    }
+    Ok(out)
 }
 
 fn raw_mesh(m: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
@@ -49,6 +62,7 @@ fn raw_mesh(m: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
         st: primvar(&m.get_item("st")?, "primvars:st")?,
         left_handed: orientation == "leftHanded",
         material: m.get_item("material")?.extract()?,
+        subsets: subsets_of(&m.get_item("subsets")?)?,
         world_gf,
     })
 }
@@ -115,10 +129,31 @@ pub fn read_stage(path: &Path, root: &Path) -> Result<RawStage, PluginError> {
                 }
             })?);
         }
+        let mut materials = Vec::new();
+        if let Ok(list) = result.get_item("materials").and_then(|v| v.try_iter()) {
+            for m in list.flatten() {
+                let look = (|| -> PyResult<SurfaceMaterial> {
+                    let c: [f32; 4] = m.get_item("base_colour")?.extract()?;
+                    Ok(SurfaceMaterial {
+                        name: m.get_item("name")?.extract()?,
+                        base_colour: c,
+                        roughness: m.get_item("roughness")?.extract()?,
+                        ..SurfaceMaterial::default()
+                    })
+                })();
+                match look {
+                    Ok(look) if look.base_colour.iter().all(|c| c.is_finite()) => {
+                        materials.push(look)
+                    }
+                    _ => {}
+                }
+            }
+        }
         Ok(RawStage {
             up_axis,
             meters_per_unit,
             meshes,
+            materials,
         })
     })
 }
@@ -184,7 +219,7 @@ impl UsdImporter {
             .map(|m| build_display_mesh(m, report))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(ImportedScene {
-            materials: Vec::new(),
+            materials: stage.materials,
             notes: Vec::new(),
             meshes,
             up_axis: stage.up_axis,

@@ -53,6 +53,8 @@ pub struct RawMesh {
     pub st: Option<RawPrimvar>,
     pub left_handed: bool,
     pub material: Option<String>,
+    /// Materials bound to faces through GeomSubsets: (material name, face indices).
+    pub subsets: Vec<(String, Vec<i32>)>,
     /// `ComputeLocalToWorldTransform` as Gf stores it: row-major, row vectors.
     pub world_gf: [f64; 16],
 }
@@ -176,6 +178,64 @@ pub fn build_display_mesh(raw: &RawMesh, file: &Path) -> Result<DisplayMesh, Plu
     if let Some(st) = &raw.st {
         check_primvar(st, 2, raw, "primvars:st", file)?;
     }
+    // Each face's material group: its GeomSubset's material, else the mesh's own; one
+    // primitive per group, in order of the groups' first face.
+    let face_count = raw.counts.len();
+    let mut group_of_face: Vec<Option<String>> = vec![raw.material.clone(); face_count];
+    for (material, faces) in &raw.subsets {
+        for &f in faces {
+            let f = usize::try_from(f)
+                .ok()
+                .filter(|&f| f < face_count)
+                .ok_or_else(|| {
+                    PluginError::invalid(
+                        file,
+                        format!("a GeomSubset names face {f}, the mesh has {face_count}"),
+                    )
+                    .at(raw.path.clone())
+                })?;
+            group_of_face[f] = Some(material.clone());
+        }
+    }
+    let mut groups: Vec<Option<String>> = Vec::new();
+    for g in &group_of_face {
+        if !groups.contains(g) {
+            groups.push(g.clone());
+        }
+    }
+    let mut first_corner = Vec::with_capacity(face_count);
+    let mut fv = 0usize;
+    for &count in &raw.counts {
+        first_corner.push(fv);
+        fv += count as usize;
+    }
+    let mut primitives = Vec::with_capacity(groups.len());
+    let mut source: Vec<u32> = Vec::new();
+    for group in &groups {
+        let faces = (0..face_count).filter(|&f| &group_of_face[f] == group);
+        let (primitive, points) = build_primitive(raw, faces, &first_corner, group.clone());
+        source.extend(points);
+        primitives.push(primitive);
+    }
+    let point_count = raw.points.len();
+    Ok(DisplayMesh {
+        name: raw.name.clone(),
+        source_key: raw.path.clone(),
+        world_from_local: raw.world_from_local(),
+        primitives,
+        source_point_of_vertex: source,
+        source_point_count: point_count,
+    })
+}
+
+/// The faces `faces` of `raw` as one primitive (display vertices unique per point, normal and
+/// UV), and the source point of each of its vertices.
+fn build_primitive(
+    raw: &RawMesh,
+    faces: impl Iterator<Item = usize>,
+    first_corner: &[usize],
+    material: Option<String>,
+) -> (Primitive, Vec<u32>) {
     let mut positions: Vec<[f32; 3]> = Vec::new();
     let mut normals: Vec<[f32; 3]> = Vec::new();
     let mut uvs: Vec<[f32; 2]> = Vec::new();
@@ -183,13 +243,13 @@ pub fn build_display_mesh(raw: &RawMesh, file: &Path) -> Result<DisplayMesh, Plu
     let mut triangles: Vec<u32> = Vec::new();
     // (point, normal bits, uv bits) → display vertex
     let mut seen: HashMap<(u32, [u32; 3], [u32; 2]), u32> = HashMap::new();
-    let mut fv = 0usize;
     let mut corner_vertices: Vec<u32> = Vec::new();
     let mut corner_positions: Vec<[f64; 3]> = Vec::new();
-    for (face, &count) in raw.counts.iter().enumerate() {
+    for face in faces {
         corner_vertices.clear();
         corner_positions.clear();
-        for _ in 0..count as usize {
+        let mut fv = first_corner[face];
+        for _ in 0..raw.counts[face] as usize {
             let point = raw.indices[fv] as usize;
             let normal = raw.normals.as_ref().map(|n| {
                 let e = element(n.interpolation, face, fv, point) * 3;
@@ -233,21 +293,14 @@ pub fn build_display_mesh(raw: &RawMesh, file: &Path) -> Result<DisplayMesh, Plu
             }
         }
     }
-    let point_count = raw.points.len();
-    Ok(DisplayMesh {
-        name: raw.name.clone(),
-        source_key: raw.path.clone(),
-        world_from_local: raw.world_from_local(),
-        primitives: vec![Primitive {
-            positions,
-            normals: raw.normals.as_ref().map(|_| normals),
-            uvs: raw.st.as_ref().map(|_| uvs),
-            indices: triangles,
-            material: raw.material.clone(),
-        }],
-        source_point_of_vertex: source,
-        source_point_count: point_count,
-    })
+    let primitive = Primitive {
+        positions,
+        normals: raw.normals.as_ref().map(|_| normals),
+        uvs: raw.st.as_ref().map(|_| uvs),
+        indices: triangles,
+        material,
+    };
+    (primitive, source)
 }
 
 fn v3(p: [f64; 3]) -> Vector3<f64> {
@@ -440,6 +493,7 @@ mod tests {
             }),
             left_handed: false,
             material: Some("Red".into()),
+            subsets: Vec::new(),
             world_gf: [
                 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 10.0, 20.0, 30.0, 1.0,
             ],

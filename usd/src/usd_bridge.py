@@ -146,6 +146,29 @@ def _primvar_data(primvar, time, location):
 _UV_TYPES = ("texCoord2f[]", "texCoord2d[]", "texCoord2h[]")
 
 
+def _material_look(material):
+    """A bound material's UsdPreviewSurface values (diffuse colour, opacity, roughness), or
+    None when its surface is another kind of shader."""
+    try:
+        shader = material.ComputeSurfaceSource()[0]
+        if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
+            return None
+
+        def value(name, default):
+            source = shader.GetInput(name)
+            got = source.Get() if source else None
+            return default if got is None else got
+
+        c = value("diffuseColor", Gf.Vec3f(0.18, 0.18, 0.18))
+        return {
+            "name": material.GetPrim().GetName(),
+            "base_colour": [float(c[0]), float(c[1]), float(c[2]), float(value("opacity", 1.0))],
+            "roughness": float(value("roughness", 0.5)),
+        }
+    except Exception:
+        return None
+
+
 def read_stage(path, root):
     _check_layer_tree(path, root)
     stage = _open(path)
@@ -153,6 +176,7 @@ def read_stage(path, root):
     time = Usd.TimeCode.Default()
     meshes = []
     hidden = []
+    looks = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
@@ -211,8 +235,20 @@ def read_stage(path, root):
             bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
             if bound:
                 material = bound.GetPrim().GetName()
+                looks.setdefault(material, _material_look(bound))
         except Exception:
             material = None
+        # Materials bound per face through GeomSubsets (family materialBind).
+        subsets = []
+        try:
+            for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
+                bound, _rel = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
+                faces = subset.GetIndicesAttr().Get(time)
+                if bound and faces is not None:
+                    subsets.append((bound.GetPrim().GetName(), _flat(faces, "i")))
+                    looks.setdefault(bound.GetPrim().GetName(), _material_look(bound))
+        except Exception:
+            subsets = []
         world = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time)
         meshes.append(
             {
@@ -226,6 +262,7 @@ def read_stage(path, root):
                 "st": st,
                 "orientation": str(mesh.GetOrientationAttr().Get() or "rightHanded"),
                 "material": material,
+                "subsets": subsets,
                 # Gf matrices are row-major with row vectors (p' = p * M).
                 "world": array.array("d", [world[i][j] for i in range(4) for j in range(4)]).tobytes(),
             }
@@ -240,6 +277,7 @@ def read_stage(path, root):
         "up_axis": str(UsdGeom.GetStageUpAxis(stage)),
         "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
         "meshes": meshes,
+        "materials": [look for look in looks.values() if look is not None],
     }
 
 

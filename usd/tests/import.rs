@@ -350,3 +350,54 @@ fn invisible_and_guide_meshes_are_left_out_and_any_texcoord_primvar_is_the_uvs()
     assert!(err.contains("every UsdGeomMesh is invisible"), "{err}");
     assert!(err.contains("/World/Guide (purpose guide)"), "{err}");
 }
+
+/// Materials bound per face through GeomSubsets become one primitive per material (faces in
+/// no subset keep the mesh's own binding); a subset naming a face the mesh lacks is an error.
+#[test]
+fn geom_subset_materials_split_the_mesh_into_primitives() {
+    let cube = |subset_b: &str| {
+        format!(
+            "#usda 1.0\ndef Xform \"World\" {{\n\
+             \x20   def Material \"Red\" {{}}\n    def Material \"Blue\" {{}}\n\
+             \x20   def Mesh \"Box\" (prepend apiSchemas = [\"MaterialBindingAPI\"]) {{\n\
+             \x20       int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]\n\
+             \x20       int[] faceVertexIndices = [0,2,3,1, 4,5,7,6, 0,1,5,4, 2,6,7,3, 0,4,6,2, 1,3,7,5]\n\
+             \x20       point3f[] points = [(0,0,0),(1,0,0),(0,1,0),(1,1,0),(0,0,1),(1,0,1),(0,1,1),(1,1,1)]\n\
+             \x20       def GeomSubset \"a\" (prepend apiSchemas = [\"MaterialBindingAPI\"]) {{\n\
+             \x20           uniform token elementType = \"face\"\n\
+             \x20           uniform token familyName = \"materialBind\"\n\
+             \x20           int[] indices = [0, 1, 2]\n\
+             \x20           rel material:binding = </World/Red>\n        }}\n\
+             \x20       def GeomSubset \"b\" (prepend apiSchemas = [\"MaterialBindingAPI\"]) {{\n\
+             \x20           uniform token elementType = \"face\"\n\
+             \x20           uniform token familyName = \"materialBind\"\n\
+             \x20           int[] indices = [{subset_b}]\n\
+             \x20           rel material:binding = </World/Blue>\n        }}\n    }}\n}}\n"
+        )
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.usda");
+    std::fs::write(&path, cube("3, 4, 5")).unwrap();
+    let scene = import(&path).unwrap();
+    let m = &scene.meshes[0];
+    let materials: Vec<_> = m.primitives.iter().map(|p| p.material.as_deref()).collect();
+    assert_eq!(materials, [Some("Red"), Some("Blue")]);
+    assert!(m.primitives.iter().all(|p| p.triangle_count() == 6));
+    assert_eq!(m.source_point_count, 8);
+    assert_eq!(m.source_point_of_vertex.len(), m.vertex_count());
+    // Faces 4 and 5 in no subset: a third primitive without a material.
+    std::fs::write(&path, cube("3")).unwrap();
+    let scene = import(&path).unwrap();
+    let materials: Vec<_> = scene.meshes[0]
+        .primitives
+        .iter()
+        .map(|p| p.material.clone())
+        .collect();
+    assert_eq!(materials, [Some("Red".into()), Some("Blue".into()), None]);
+    std::fs::write(&path, cube("3, 9")).unwrap();
+    let err = import(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("face 9, the mesh has 6") && err.contains("/World/Box"),
+        "{err}"
+    );
+}
