@@ -248,8 +248,8 @@ fn build_primitive(
     for face in faces {
         corner_vertices.clear();
         corner_positions.clear();
-        let mut fv = first_corner[face];
-        for _ in 0..raw.counts[face] as usize {
+        let start = first_corner[face];
+        for fv in start..start + raw.counts[face] as usize {
             let point = raw.indices[fv] as usize;
             let normal = raw.normals.as_ref().map(|n| {
                 let e = element(n.interpolation, face, fv, point) * 3;
@@ -282,7 +282,6 @@ fn build_primitive(
             });
             corner_vertices.push(vertex);
             corner_positions.push(raw.points[point]);
-            fv += 1;
         }
         for t in triangulate(&corner_positions) {
             let [a, b, c] = t.map(|i| corner_vertices[i]);
