@@ -1,6 +1,7 @@
 //! Flipbooks: a range of frames rendered offscreen (no GPU, no display) into an animated GIF,
 //! or an MP4/WebM through the system's `ffmpeg` when it is installed, and a contact sheet of
-//! one file's frames. Frames are rendered in order (a simulated scene steps through them);
+//! one file's frames. Frames are rendered in order (a simulated scene steps through them) and
+//! encoded 16 at a time, so memory does not grow with the length of the bake;
 //! the GIF's colour quantisation, the slow part, runs on every core, and its result does not
 //! depend on the thread count (each frame is quantised on its own).
 
@@ -12,7 +13,7 @@ use rayon::prelude::*;
 use std::io::Write;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 
 /// What to render.
 #[derive(Debug, Clone, PartialEq)]
@@ -68,7 +69,13 @@ pub fn frame_range(
     Ok(r)
 }
 
+/// Frames rendered before they are encoded and dropped: memory stays bounded whatever the
+/// length of the bake (a few frames per core at a time).
+const FRAMES_PER_CHUNK: usize = 16;
+
 /// Renders `args.frames` of `args.input` and writes the flipbook; returns the frame count.
+/// Frames are rendered and encoded a chunk at a time, so a long bake takes no more memory
+/// than a short one (besides the compressed output).
 pub fn write_flipbook(args: &FlipbookArgs) -> Result<usize, ViewerError> {
     let kind = kind(&args.output)?;
     check_size(args.width, args.height)?;
@@ -77,27 +84,178 @@ pub fn write_flipbook(args: &FlipbookArgs) -> Result<usize, ViewerError> {
     let range = frame_range(&args.frames, source.frame_count(), &args.input)?;
     let fps = source.fps();
     let camera = crate::aim(initial_camera(&source), args.camera);
-    let mut images = Vec::with_capacity(range.clone().count());
-    for frame in range {
-        let size = (args.width, args.height);
-        images.push(render_frame(
-            &mut source,
-            &args.input,
-            &camera,
-            frame,
-            size,
-        )?);
-    }
     let io = |message| ViewerError::Io {
         path: args.output.clone(),
         message,
     };
-    let bytes = match kind {
-        Kind::Gif => gif_bytes(&images, fps).map_err(io)?,
-        Kind::Video => video_bytes(&images, fps, &args.output, io)?,
+    let mut sink = match kind {
+        Kind::Gif => Sink::Gif(GifSink::new(args.width, args.height, fps).map_err(io)?),
+        Kind::Video => Sink::Video(VideoSink::start(
+            args.width,
+            args.height,
+            fps,
+            &args.output,
+        )?),
+    };
+    let frames: Vec<usize> = range.collect();
+    for chunk in frames.chunks(FRAMES_PER_CHUNK) {
+        let mut images = Vec::with_capacity(chunk.len());
+        for &frame in chunk {
+            let size = (args.width, args.height);
+            images.push(render_frame(
+                &mut source,
+                &args.input,
+                &camera,
+                frame,
+                size,
+            )?);
+        }
+        match &mut sink {
+            Sink::Gif(g) => g.push(&images).map_err(io)?,
+            Sink::Video(v) => v.push(&images).map_err(io)?,
+        }
+    }
+    let bytes = match sink {
+        Sink::Gif(g) => g.finish().map_err(io)?,
+        Sink::Video(v) => v.finish().map_err(io)?,
     };
     write(&args.output, &bytes)?;
-    Ok(images.len())
+    Ok(frames.len())
+}
+
+enum Sink {
+    Gif(GifSink),
+    Video(VideoSink),
+}
+
+/// An endlessly looping GIF being written (GIF delays are in hundredths of a second).
+struct GifSink {
+    encoder: gif::Encoder<Vec<u8>>,
+    size: (u16, u16),
+    delay: u16,
+}
+
+impl GifSink {
+    fn new(width: u32, height: u32, fps: f64) -> Result<GifSink, String> {
+        let size = (
+            u16::try_from(width).map_err(|_| "wider than a GIF allows")?,
+            u16::try_from(height).map_err(|_| "taller than a GIF allows")?,
+        );
+        let mut encoder =
+            gif::Encoder::new(Vec::new(), size.0, size.1, &[]).map_err(|e| e.to_string())?;
+        encoder
+            .set_repeat(gif::Repeat::Infinite)
+            .map_err(|e| e.to_string())?;
+        Ok(GifSink {
+            encoder,
+            size,
+            delay: (100.0 / fps.max(1.0)).round().clamp(2.0, 65_535.0) as u16,
+        })
+    }
+
+    /// Quantises the images (NeuQuant, its fast setting, on every core) and appends them.
+    fn push(&mut self, images: &[Image]) -> Result<(), String> {
+        let (w, h) = self.size;
+        let frames: Vec<gif::Frame<'static>> = images
+            .par_iter()
+            .map(|image| {
+                let mut rgba = image.rgba.clone();
+                let mut frame = gif::Frame::from_rgba_speed(w, h, &mut rgba, 10);
+                frame.delay = self.delay;
+                frame
+            })
+            .collect();
+        for frame in &frames {
+            self.encoder.write_frame(frame).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<Vec<u8>, String> {
+        self.encoder.into_inner().map_err(|e| e.to_string())
+    }
+}
+
+/// An endlessly looping GIF of `images` at `fps`.
+pub fn gif_bytes(images: &[Image], fps: f64) -> Result<Vec<u8>, String> {
+    let first = images.first().ok_or("no frames to write")?;
+    let mut sink = GifSink::new(first.width, first.height, fps)?;
+    sink.push(images)?;
+    sink.finish()
+}
+
+/// A video being made by the system's `ffmpeg` (its default codec for the extension) from raw
+/// frames on its standard input; read back as bytes at the end so the file is written
+/// atomically like every output. No ffmpeg: a usage error that says so.
+struct VideoSink {
+    child: Child,
+    file: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl VideoSink {
+    fn start(width: u32, height: u32, fps: f64, output: &Path) -> Result<VideoSink, ViewerError> {
+        let io = |message: String| ViewerError::Io {
+            path: output.to_path_buf(),
+            message,
+        };
+        let dir = tempfile::tempdir().map_err(|e| io(e.to_string()))?;
+        let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("mp4");
+        let file = dir.path().join(format!("flipbook.{ext}"));
+        // Even sizes for yuv420p.
+        let (w, h) = (width & !1, height & !1);
+        let child = Command::new("ffmpeg")
+            .args([
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgba",
+            ])
+            .args(["-s", &format!("{width}x{height}")])
+            .args(["-r", &format!("{fps}"), "-i", "-"])
+            .args(["-vf", &format!("crop={w}:{h}:0:0"), "-pix_fmt", "yuv420p"])
+            .arg(&file)
+            .stdin(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| {
+                ViewerError::Usage(format!(
+                    "{}: an .{ext} flipbook needs ffmpeg on PATH ({e}); write a .gif instead, \
+                     or install ffmpeg",
+                    output.display()
+                ))
+            })?;
+        Ok(VideoSink {
+            child,
+            file,
+            _dir: dir,
+        })
+    }
+
+    fn push(&mut self, images: &[Image]) -> Result<(), String> {
+        let stdin = self.child.stdin.as_mut().ok_or("ffmpeg has no input")?;
+        for image in images {
+            stdin
+                .write_all(&image.rgba)
+                .map_err(|e| format!("ffmpeg stopped reading: {e}"))?;
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<Vec<u8>, String> {
+        drop(self.child.stdin.take());
+        let out = self.child.wait_with_output().map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            return Err(format!(
+                "ffmpeg failed: {}",
+                String::from_utf8_lossy(&out.stderr).trim()
+            ));
+        }
+        std::fs::read(&self.file).map_err(|e| e.to_string())
+    }
 }
 
 /// A contact sheet of `count` frames of `input`, evenly spaced over `frames`.
@@ -157,98 +315,6 @@ fn write(path: &Path, bytes: &[u8]) -> Result<(), ViewerError> {
         path: path.to_path_buf(),
         message: format!("cannot write it: {e}"),
     })
-}
-
-/// An endlessly looping GIF at `fps` (GIF delays are in hundredths of a second).
-pub fn gif_bytes(images: &[Image], fps: f64) -> Result<Vec<u8>, String> {
-    let Some(first) = images.first() else {
-        return Err("no frames to write".into());
-    };
-    let (w, h) = (
-        u16::try_from(first.width).map_err(|_| "wider than a GIF allows")?,
-        u16::try_from(first.height).map_err(|_| "taller than a GIF allows")?,
-    );
-    let delay = (100.0 / fps.max(1.0)).round().clamp(2.0, 65_535.0) as u16;
-    // NeuQuant per frame (speed 10: its fast setting), on every core.
-    let frames: Vec<gif::Frame<'static>> = images
-        .par_iter()
-        .map(|image| {
-            let mut rgba = image.rgba.clone();
-            let mut frame = gif::Frame::from_rgba_speed(w, h, &mut rgba, 10);
-            frame.delay = delay;
-            frame
-        })
-        .collect();
-    let mut bytes = Vec::new();
-    {
-        let mut encoder = gif::Encoder::new(&mut bytes, w, h, &[]).map_err(|e| e.to_string())?;
-        encoder
-            .set_repeat(gif::Repeat::Infinite)
-            .map_err(|e| e.to_string())?;
-        for frame in &frames {
-            encoder.write_frame(frame).map_err(|e| e.to_string())?;
-        }
-    }
-    Ok(bytes)
-}
-
-/// A video through the system's `ffmpeg` (its default codec for the extension), read back as
-/// bytes so the file is written atomically like every output. No ffmpeg: a usage error that
-/// says so.
-fn video_bytes(
-    images: &[Image],
-    fps: f64,
-    output: &Path,
-    io: impl Fn(String) -> ViewerError,
-) -> Result<Vec<u8>, ViewerError> {
-    let first = images
-        .first()
-        .ok_or_else(|| io("no frames to write".into()))?;
-    let dir = tempfile::tempdir().map_err(|e| io(e.to_string()))?;
-    let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("mp4");
-    let tmp = dir.path().join(format!("flipbook.{ext}"));
-    // Even sizes for yuv420p.
-    let (w, h) = (first.width & !1, first.height & !1);
-    let mut child = Command::new("ffmpeg")
-        .args([
-            "-loglevel",
-            "error",
-            "-y",
-            "-f",
-            "rawvideo",
-            "-pix_fmt",
-            "rgba",
-        ])
-        .args(["-s", &format!("{}x{}", first.width, first.height)])
-        .args(["-r", &format!("{fps}"), "-i", "-"])
-        .args(["-vf", &format!("crop={w}:{h}:0:0"), "-pix_fmt", "yuv420p"])
-        .arg(&tmp)
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| {
-            ViewerError::Usage(format!(
-                "{}: an .{ext} flipbook needs ffmpeg on PATH ({e}); write a .gif instead, or \
-                 install ffmpeg",
-                output.display()
-            ))
-        })?;
-    if let Some(stdin) = child.stdin.as_mut() {
-        for image in images {
-            stdin
-                .write_all(&image.rgba)
-                .map_err(|e| io(format!("ffmpeg stopped reading: {e}")))?;
-        }
-    }
-    drop(child.stdin.take());
-    let out = child.wait_with_output().map_err(|e| io(e.to_string()))?;
-    if !out.status.success() {
-        return Err(io(format!(
-            "ffmpeg failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        )));
-    }
-    std::fs::read(&tmp).map_err(|e| io(e.to_string()))
 }
 
 #[cfg(test)]
