@@ -133,6 +133,7 @@ fn run(nodes_per_side: u32, preset: &str, seconds: f64) -> Result<Row, String> {
         let nodes = world.body_points(handle);
         let verts = embedding.points(&nodes);
         let mesh = DrawMesh {
+            texture: None,
             positions: verts.iter().map(|p| p.coords).collect(),
             triangles: st.clone(),
             colour: BODY_COLOUR,
@@ -167,6 +168,7 @@ fn run(nodes_per_side: u32, preset: &str, seconds: f64) -> Result<Row, String> {
     let nodes = world.body_points(handle);
     let verts = embedding.points(&nodes);
     let mesh = DrawMesh {
+        texture: None,
         positions: verts.iter().map(|p| p.coords).collect(),
         triangles: st,
         colour: BODY_COLOUR,

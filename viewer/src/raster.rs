@@ -23,6 +23,69 @@ pub struct DrawMesh {
     pub positions: Vec<Vector3<f64>>,
     pub triangles: Vec<[u32; 3]>,
     pub colour: [u8; 3],
+    /// An image over the surface through per-vertex UVs (drawn instead of `colour`).
+    pub texture: Option<std::sync::Arc<TexturedSurface>>,
+}
+
+/// An 8-bit RGB image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<[u8; 3]>,
+}
+
+impl Texture {
+    /// A PNG's pixels (8 or 16 bits, grey, RGB, palette, with or without alpha); `None` for
+    /// anything else (JPEG is not decoded: the mesh keeps its colour).
+    pub fn from_png(bytes: &[u8]) -> Option<Texture> {
+        let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+        decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+        let mut reader = decoder.read_info().ok()?;
+        let mut buf = vec![0; reader.output_buffer_size()?];
+        let info = reader.next_frame(&mut buf).ok()?;
+        let channels = match info.color_type {
+            png::ColorType::Grayscale => 1,
+            png::ColorType::GrayscaleAlpha => 2,
+            png::ColorType::Rgb => 3,
+            png::ColorType::Rgba => 4,
+            png::ColorType::Indexed => return None,
+        };
+        let (w, h) = (info.width as usize, info.height as usize);
+        let rgb = (0..w * h)
+            .map(|i| {
+                let row = (i / w) * info.line_size;
+                let p = &buf[row + (i % w) * channels..];
+                if channels < 3 {
+                    [p[0]; 3]
+                } else {
+                    [p[0], p[1], p[2]]
+                }
+            })
+            .collect();
+        (w > 0 && h > 0).then_some(Texture {
+            width: info.width,
+            height: info.height,
+            rgb,
+        })
+    }
+
+    /// The texel at `uv` (repeating, nearest; v = 0 is the image's top row, as in glTF).
+    pub fn sample(&self, uv: [f64; 2]) -> [u8; 3] {
+        let wrap = |t: f64, n: u32| {
+            let f = t - t.floor();
+            ((f * n as f64) as u32).min(n - 1)
+        };
+        let (x, y) = (wrap(uv[0], self.width), wrap(uv[1], self.height));
+        self.rgb[(y * self.width + x) as usize]
+    }
+}
+
+/// A texture and the UV of each vertex of the mesh it covers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TexturedSurface {
+    pub texture: Texture,
+    pub uvs: Vec<[f32; 2]>,
 }
 
 impl DrawMesh {
@@ -43,10 +106,13 @@ pub fn bounds_of<'a>(
 }
 
 /// A projected, shaded triangle.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ShadedTriangle {
     pub points: [ScreenPoint; 3],
+    /// Flat colour (a textured triangle: its texture at the centroid, shaded).
     pub colour: [u8; 3],
+    /// A textured triangle: the surface, its corners' UVs and the light factor.
+    pub texture: Option<(std::sync::Arc<TexturedSurface>, [[f32; 2]; 3], f64)>,
 }
 
 /// Lambert factor for a face normal seen from `to_eye`: ambient 0.25 plus 0.75 × the key
@@ -97,12 +163,25 @@ pub fn shade(
                 continue;
             }
             let k = lambert(&(normal / len), &(proj.eye - centre), &light);
-            let colour = mesh
-                .colour
-                .map(|c| (c as f64 * k).round().clamp(0.0, 255.0) as u8);
+            let texture = mesh.texture.as_ref().and_then(|surface| {
+                let uv = idx.map(|i| surface.uvs.get(i).copied());
+                match uv {
+                    [Some(u0), Some(u1), Some(u2)] => Some((surface.clone(), [u0, u1, u2], k)),
+                    _ => None,
+                }
+            });
+            let base = match &texture {
+                Some((surface, [u0, u1, u2], _)) => surface.texture.sample([
+                    f64::from(u0[0] + u1[0] + u2[0]) / 3.0,
+                    f64::from(u0[1] + u1[1] + u2[1]) / 3.0,
+                ]),
+                None => mesh.colour,
+            };
+            let colour = base.map(|c| (c as f64 * k).round().clamp(0.0, 255.0) as u8);
             out.push(ShadedTriangle {
                 points: [a, b, c],
                 colour,
+                texture,
             });
         }
     }
@@ -263,7 +342,21 @@ fn fill_triangle(t: &ShadedTriangle, w: u32, h: u32, depth: &mut [f64], colour: 
             let i = (y as u32 * w + x as u32) as usize;
             if z < depth[i] {
                 depth[i] = z;
-                colour[i] = t.colour;
+                colour[i] = match &t.texture {
+                    // Perspective-correct UV: interpolate uv / depth, then times depth.
+                    Some((surface, uv, k)) => {
+                        let at = |c: usize| {
+                            z * (w0 * inv[0] * f64::from(uv[0][c])
+                                + w1 * inv[1] * f64::from(uv[1][c])
+                                + w2 * inv[2] * f64::from(uv[2][c]))
+                        };
+                        surface
+                            .texture
+                            .sample([at(0), at(1)])
+                            .map(|v| (v as f64 * k).round().clamp(0.0, 255.0) as u8)
+                    }
+                    None => t.colour,
+                };
             }
         }
     }
@@ -347,6 +440,7 @@ pub fn floor_meshes(
         mesh.triangles.push([base, base + 2, base + 3]);
     };
     let mut plane = DrawMesh {
+        texture: None,
         positions: Vec::new(),
         triangles: Vec::new(),
         colour: FLOOR_COLOUR,
@@ -361,6 +455,7 @@ pub fn floor_meshes(
         &mut plane,
     );
     let mut grid = DrawMesh {
+        texture: None,
         positions: Vec::new(),
         triangles: Vec::new(),
         colour: GRID_COLOUR,
@@ -425,6 +520,7 @@ pub fn subdivided(mesh: &DrawMesh, max_edge: f64, budget: usize) -> DrawMesh {
         triangles = next;
     }
     DrawMesh {
+        texture: None,
         positions,
         triangles,
         colour: mesh.colour,
@@ -461,6 +557,7 @@ pub fn shadow_meshes(meshes: &[DrawMesh], up: Vector3<f64>, floor: f64) -> Vec<D
             let colour = FLOOR_COLOUR.map(|c| (c as f64 * (1.0 - 0.7 * f)).round() as u8);
             let lift = (2.0 + k as f64) * 1e-4 * size;
             let mut disc = DrawMesh {
+                texture: None,
                 positions: vec![a * ca + b * cb + up * (floor + lift)],
                 triangles: Vec::new(),
                 colour,
@@ -521,6 +618,7 @@ pub fn capsule_mesh(capsule: &Capsule, segments: u32, rings: u32, colour: [u8; 3
         }
     }
     DrawMesh {
+        texture: None,
         positions,
         triangles,
         colour,
@@ -533,6 +631,7 @@ mod tests {
 
     fn quad(z: f64, colour: [u8; 3]) -> DrawMesh {
         DrawMesh {
+            texture: None,
             positions: vec![
                 Vector3::new(-0.5, -0.5, z),
                 Vector3::new(0.5, -0.5, z),
@@ -595,6 +694,7 @@ mod tests {
             .map(|[a, b, c]| if flip { [a, c, b] } else { [a, b, c] })
             .collect();
         DrawMesh {
+            texture: None,
             positions: p.iter().map(|q| q.coords).collect(),
             triangles,
             colour: [200, 200, 200],

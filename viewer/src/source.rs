@@ -64,6 +64,7 @@ impl Simulation {
     pub fn body_meshes(&self) -> Vec<DrawMesh> {
         (0..self.prepared.bodies.len())
             .map(|b| DrawMesh {
+                texture: None,
                 positions: self
                     .prepared
                     .vertex_positions(b)
@@ -95,6 +96,7 @@ impl Simulation {
                 .map(|c| capsule_mesh(c, 24, 6, CAPSULE_COLOUR)),
         );
         out.extend(self.prepared.world.colliders().iter().map(|c| DrawMesh {
+            texture: None,
             positions: c.positions.clone(),
             triangles: c.triangles.clone(),
             colour: COLLIDER_COLOUR,
@@ -119,6 +121,8 @@ pub struct BakedMeshData {
     pub triangles: Vec<[u32; 3]>,
     /// The base colour of its first primitive's material (sRGB), else the viewer's body colour.
     pub colour: [u8; 3],
+    /// That material's base-colour image (a PNG) over the mesh's UVs, when it has both.
+    pub texture: Option<std::sync::Arc<crate::raster::TexturedSurface>>,
 }
 
 /// A baked glTF's frames.
@@ -160,6 +164,32 @@ impl StageCapsule {
             friction: 0.0,
         })
     }
+}
+
+/// The base-colour image of `mesh`'s first primitive's material (a PNG) over the mesh's UVs
+/// (every primitive's, in order), when both are there.
+fn surface_texture(
+    scene: &springbake_core::display::ImportedScene,
+    mesh: &springbake_core::display::DisplayMesh,
+) -> Option<std::sync::Arc<crate::raster::TexturedSurface>> {
+    let name = mesh.primitives.first()?.material.as_ref()?;
+    let image = scene
+        .materials
+        .iter()
+        .find(|m| &m.name == name)?
+        .base_colour_texture
+        .as_ref()?;
+    let texture = crate::raster::Texture::from_png(&image.bytes)?;
+    let uvs = mesh
+        .primitives
+        .iter()
+        .map(|p| p.uvs.clone())
+        .collect::<Option<Vec<_>>>()?
+        .concat();
+    Some(std::sync::Arc::new(crate::raster::TexturedSurface {
+        texture,
+        uvs,
+    }))
 }
 
 /// The sRGB base colour of glTF mesh `mesh`'s first primitive's material (`baseColorFactor`
@@ -242,6 +272,7 @@ fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>, Vec<DrawMe
                 .collect();
             (!triangles.is_empty() && positions.iter().all(|p| p.iter().all(|x| x.is_finite())))
                 .then_some(DrawMesh {
+                    texture: None,
                     positions,
                     triangles,
                     colour: COLLIDER_COLOUR,
@@ -284,6 +315,7 @@ impl BakedPlayback {
                     })
                     .collect();
                 DrawMesh {
+                    texture: m.texture.clone(),
                     positions,
                     triangles: m.triangles.clone(),
                     colour: m.colour,
@@ -622,6 +654,7 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
         let colour = gltf_mesh
             .and_then(|mi| base_colour(&doc, mi))
             .unwrap_or(BODY_COLOUR);
+        let texture = surface_texture(&scene, mesh);
         meshes.push(BakedMeshData {
             world_from_local: mesh.world_from_local,
             rest,
@@ -629,6 +662,7 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
             frame_weights,
             triangles,
             colour,
+            texture,
         });
     }
     let (floor, capsules, colliders) = read_stage(&doc);
