@@ -243,11 +243,4 @@ class SPRINGBAKE_OT_free_bake(bpy.types.Operator):
 _classes = (SPRINGBAKE_OT_bake, SPRINGBAKE_OT_cancel_bake, SPRINGBAKE_OT_free_bake)
 
 
-def register():
-    for cls in _classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(_classes)

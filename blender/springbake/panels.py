@@ -116,11 +116,4 @@ class SPRINGBAKE_PT_sidebar(bpy.types.Panel):
 _classes = (SPRINGBAKE_PT_physics, SPRINGBAKE_PT_physics_scene, SPRINGBAKE_PT_sidebar)
 
 
-def register():
-    for cls in _classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(_classes)

@@ -187,9 +187,11 @@ def preferences(context):
     return addon.preferences if addon else None
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(_classes)
+
+
 def register():
-    for cls in _classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     bpy.types.Object.springbake = PointerProperty(type=SpringbakeObjectSettings)
     bpy.types.Scene.springbake = PointerProperty(type=SpringbakeSceneSettings)
 
@@ -197,5 +199,4 @@ def register():
 def unregister():
     del bpy.types.Scene.springbake
     del bpy.types.Object.springbake
-    for cls in reversed(_classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

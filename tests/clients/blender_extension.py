@@ -13,6 +13,8 @@ import time
 import bpy
 import numpy as np
 
+from bpy_points import evaluated_world
+
 zip_path, binary, work = sys.argv[1], sys.argv[2], sys.argv[3]
 out = {}
 
@@ -23,17 +25,6 @@ bpy.ops.extensions.package_install_files(
 )
 out["installed"] = "bl_ext.user_default.springbake" in bpy.context.preferences.addons.keys()
 out["install_seconds"] = time.monotonic() - started
-
-
-def evaluated_world(obj):
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    ev = obj.evaluated_get(depsgraph)
-    mesh = ev.to_mesh()
-    co = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", co)
-    ev.to_mesh_clear()
-    m = np.array(obj.matrix_world)
-    return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
 
 
 def select_only(objects):

@@ -16,17 +16,9 @@ import sys
 import bpy
 import numpy as np
 
+from bpy_points import evaluated_world
+
 source, baked, prefix, frames = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
-
-
-def world(ob):
-    ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = ev.to_mesh()
-    co = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", co)
-    ev.to_mesh_clear()
-    m = np.array(ob.matrix_world)
-    return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
 
 
 def positions(path, with_cache):
@@ -43,7 +35,7 @@ def positions(path, with_cache):
     out = {}
     for f in range(0, frames + 2):
         scene.frame_set(f)
-        out[f] = {name: world(ob) for name, ob in objects.items()}
+        out[f] = {name: evaluated_world(ob) for name, ob in objects.items()}
     return out
 
 
