@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs the test clients springbake's tests use into ignored folders of this checkout:
-#   .venv/         Python venv with bpy (Blender as a module), usd-core and ray
+#   .venv/         Python venv with bpy (Blender as a module), usd-core, alembic3d and ray
 #   node_modules/  the Khronos gltf-validator
 #   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test
 # Idempotent: a second run only checks. Needs network access to PyPI and npm.
@@ -17,6 +17,10 @@ fi
 if ! .venv/bin/python -c 'import pxr.Usd' 2>/dev/null; then
   echo "setup: installing usd-core into .venv"
   .venv/bin/pip install --quiet --disable-pip-version-check usd-core
+fi
+if ! .venv/bin/python -c 'import alembic3d' 2>/dev/null; then
+  echo "setup: installing alembic3d (PyAlembic) into .venv (Alembic export)"
+  .venv/bin/pip install --quiet --disable-pip-version-check "alembic3d==1.8.12.1"
 fi
 if ! .venv/bin/python -c 'import bpy' 2>/dev/null; then
   echo "setup: installing bpy==$BPY_VERSION into .venv (about 820 MB)"

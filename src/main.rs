@@ -45,7 +45,7 @@ enum Command {
     Bake {
         /// A scene file (.toml) or a mesh (.glb, .gltf, .obj, .usda, .usdc, .usdz).
         input: PathBuf,
-        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .pc2, .mdd).
+        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .abc, .pc2, .mdd).
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// Number of output frames (frame 1 is the initial state).

@@ -36,7 +36,7 @@ struct Frames {
     normals: Option<(Vec<u8>, usize, &'static str)>,
 }
 
-fn check_frames(
+pub(crate) fn check_frames(
     baked: &BakedMesh,
     mesh: &DisplayMesh,
     frame_count: usize,

@@ -1,5 +1,6 @@
 //! The embedded Python side: finds the project's virtual environment, makes the embedded
-//! interpreter see its `site-packages`, imports `pxr` (usd-core) and loads `usd_bridge.py` once.
+//! interpreter see its `site-packages`, imports a bridge's package (`pxr` from usd-core,
+//! `alembic3d`) and loads its bridge file (`usd_bridge.py`, `alembic_bridge.py`) once.
 //! Also turns Python exceptions into [`PluginError`]s and decodes the bridge's byte arrays.
 //!
 //! Venv search order: `$SPRINGBAKE_VENV` (authoritative when set: nothing else is tried), then
@@ -13,13 +14,34 @@ use std::ffi::CString;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-/// The bridge's source, compiled into the binary.
-const BRIDGE_SOURCE: &str = include_str!("usd_bridge.py");
-
 /// Environment variable naming the virtual environment that has usd-core.
 pub const VENV_ENV: &str = "SPRINGBAKE_VENV";
 
-static BRIDGE: OnceLock<Py<PyModule>> = OnceLock::new();
+/// One Python file compiled into the binary and the package it needs.
+pub struct Bridge {
+    /// The bridge's source.
+    pub source: &'static str,
+    pub file_name: &'static std::ffi::CStr,
+    pub module_name: &'static std::ffi::CStr,
+    /// The module imported first; when it fails the package is missing.
+    pub requires: &'static str,
+    /// The PyPI package that provides `requires`.
+    pub package: &'static str,
+    /// What the package is, for the message when it is missing.
+    pub package_role: &'static str,
+    pub loaded: OnceLock<Py<PyModule>>,
+}
+
+/// usd-core's bridge (`usd_bridge.py`).
+pub static USD_BRIDGE: Bridge = Bridge {
+    source: include_str!("usd_bridge.py"),
+    file_name: c"usd_bridge.py",
+    module_name: c"springbake_usd_bridge",
+    requires: "pxr.Usd",
+    package: "usd-core",
+    package_role: "Python's usd-core (module `pxr`)",
+    loaded: OnceLock::new(),
+};
 
 /// Where the venv search looked and what it found.
 #[derive(Debug, Clone, PartialEq)]
@@ -84,6 +106,11 @@ pub fn find_venv(
 
 /// The message for a missing usd-core: what was searched and how to install it.
 pub fn missing_usd_core_message(search: &VenvSearch, import_error: &str) -> String {
+    missing_package_message(&USD_BRIDGE, search, import_error)
+}
+
+/// The message for a bridge's missing package: what was searched and how to install it.
+pub fn missing_package_message(bridge: &Bridge, search: &VenvSearch, import_error: &str) -> String {
     let looked = if search.tried.is_empty() {
         "no .venv candidates".to_owned()
     } else {
@@ -99,9 +126,10 @@ pub fn missing_usd_core_message(search: &VenvSearch, import_error: &str) -> Stri
         None => format!("no virtual environment with site-packages found (looked at {looked})"),
     };
     format!(
-        "Python's usd-core (module `pxr`) cannot be imported ({import_error}); {venv}. \
-         Install it with `scripts/setup-test-env.sh`, or `.venv/bin/pip install usd-core` in a \
-         `.venv` at the workspace root, or point ${VENV_ENV} at a virtual environment that has it"
+        "{} cannot be imported ({import_error}); {venv}. \
+         Install it with `scripts/setup-test-env.sh`, or `.venv/bin/pip install {}` in a \
+         `.venv` at the workspace root, or point ${VENV_ENV} at a virtual environment that has it",
+        bridge.package_role, bridge.package
     )
 }
 
@@ -118,8 +146,12 @@ fn search_now(py: Python<'_>) -> VenvSearch {
     )
 }
 
-fn load_bridge<'py>(py: Python<'py>, file: &Path) -> Result<Bound<'py, PyModule>, PluginError> {
-    if let Some(m) = BRIDGE.get() {
+fn load_bridge<'py>(
+    py: Python<'py>,
+    bridge: &Bridge,
+    file: &Path,
+) -> Result<Bound<'py, PyModule>, PluginError> {
+    if let Some(m) = bridge.loaded.get() {
         return Ok(m.bind(py).clone());
     }
     let search = search_now(py);
@@ -127,7 +159,7 @@ fn load_bridge<'py>(py: Python<'py>, file: &Path) -> Result<Bound<'py, PyModule>
         PluginError::new(
             IoErrorKind::MissingDependency,
             file,
-            missing_usd_core_message(&search, &e),
+            missing_package_message(bridge, &search, &e),
         )
     };
     if let Some(sp) = &search.site_packages {
@@ -141,33 +173,46 @@ fn load_bridge<'py>(py: Python<'py>, file: &Path) -> Result<Bound<'py, PyModule>
         })();
         added.map_err(|e| missing(e.to_string()))?;
     }
-    py.import("pxr.Usd").map_err(|e| missing(e.to_string()))?;
-    let code = CString::new(BRIDGE_SOURCE).map_err(|e| {
+    py.import(bridge.requires)
+        .map_err(|e| missing(e.to_string()))?;
+    let code = CString::new(bridge.source).map_err(|e| {
         PluginError::new(
             IoErrorKind::MissingDependency,
             file,
             format!("bridge source: {e}"),
         )
     })?;
-    let module = PyModule::from_code(py, &code, c"usd_bridge.py", c"springbake_usd_bridge")
-        .map_err(|e| {
+    let module =
+        PyModule::from_code(py, &code, bridge.file_name, bridge.module_name).map_err(|e| {
             PluginError::new(
                 IoErrorKind::MissingDependency,
                 file,
-                format!("loading usd_bridge.py into the embedded Python failed: {e}"),
+                format!(
+                    "loading {} into the embedded Python failed: {e}",
+                    bridge.file_name.to_string_lossy()
+                ),
             )
         })?;
-    let _ = BRIDGE.set(module.clone().unbind());
+    let _ = bridge.loaded.set(module.clone().unbind());
     Ok(module)
 }
 
-/// Run `f` with the bridge module, the embedded interpreter attached.
+/// Run `f` with usd-core's bridge module, the embedded interpreter attached.
 pub fn with_bridge<T>(
     file: &Path,
     f: impl for<'py> FnOnce(Python<'py>, &Bound<'py, PyModule>) -> Result<T, PluginError>,
 ) -> Result<T, PluginError> {
+    with_bridge_of(&USD_BRIDGE, file, f)
+}
+
+/// Run `f` with `bridge`'s module (loaded on first use), the embedded interpreter attached.
+pub fn with_bridge_of<T>(
+    bridge: &Bridge,
+    file: &Path,
+    f: impl for<'py> FnOnce(Python<'py>, &Bound<'py, PyModule>) -> Result<T, PluginError>,
+) -> Result<T, PluginError> {
     Python::attach(|py| {
-        let module = load_bridge(py, file)?;
+        let module = load_bridge(py, bridge, file)?;
         f(py, &module)
     })
 }
@@ -198,7 +243,11 @@ pub fn plugin_error(py: Python<'_>, err: PyErr, kind: IoErrorKind, file: &Path) 
                 .name()
                 .map(|n| n.to_string())
                 .unwrap_or_else(|_| "exception".into());
-            PluginError::new(kind, file, format!("usd-core raised {type_name}: {value}"))
+            PluginError::new(
+                kind,
+                file,
+                format!("the embedded Python raised {type_name}: {value}"),
+            )
         }
     }
 }
