@@ -315,6 +315,13 @@ fn display_frames(baked: &BakedMesh, mesh: &DisplayMesh) -> Frames {
     }
 }
 
+fn up_axis_token(up: UpAxis) -> &'static str {
+    match up {
+        UpAxis::Y => "Y",
+        UpAxis::Z => "Z",
+    }
+}
+
 fn output_extension(path: &Path) -> Result<&'static str, PluginError> {
     match path
         .extension()
@@ -398,6 +405,10 @@ impl UsdExporter {
                 spec.set_item("meshes", list).map_err(to_err)?;
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
                 spec.set_item("frame_count", baked.frame_count)
+                    .map_err(to_err)?;
+                spec.set_item("up_axis", up_axis_token(scene.up_axis))
+                    .map_err(to_err)?;
+                spec.set_item("meters_per_unit", scene.meters_per_unit)
                     .map_err(to_err)?;
                 bridge
                     .call_method1(
@@ -491,14 +502,8 @@ impl UsdExporter {
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
                 spec.set_item("frame_count", baked.frame_count)
                     .map_err(to_err)?;
-                spec.set_item(
-                    "up_axis",
-                    match scene.up_axis {
-                        UpAxis::Y => "Y",
-                        UpAxis::Z => "Z",
-                    },
-                )
-                .map_err(to_err)?;
+                spec.set_item("up_axis", up_axis_token(scene.up_axis))
+                    .map_err(to_err)?;
                 spec.set_item("meters_per_unit", scene.meters_per_unit)
                     .map_err(to_err)?;
                 bridge

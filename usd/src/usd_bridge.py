@@ -367,7 +367,17 @@ def write_source_stage(source_path, out_path, spec):
             prim.RemoveProperty("primvars:normals:indices")
         if item.get("normals") is None and item.get("drop_normals"):
             prim.RemoveProperty("normals")
+        if not mesh.GetSubdivisionSchemeAttr().HasAuthoredValue():
+            # Unauthored means Catmull-Clark: renderers would subdivide the baked cage.
+            mesh.CreateSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
         _author_frames(mesh, item, frame_count, location)
+    # What the import assumed where the source left it unsaid, written down for the next reader.
+    if not stage.HasAuthoredMetadata("upAxis"):
+        UsdGeom.SetStageUpAxis(
+            stage, UsdGeom.Tokens.z if spec["up_axis"] == "Z" else UsdGeom.Tokens.y
+        )
+    if not stage.HasAuthoredMetadata("metersPerUnit"):
+        UsdGeom.SetStageMetersPerUnit(stage, float(spec["meters_per_unit"]))
     _set_stage_timing(stage, spec)
     _export(stage, out_path)
 
