@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs the test clients springbake's tests use into ignored folders of this checkout:
 #   .venv/         Python venv with bpy (Blender as a module), usd-core, alembic3d and ray
-#   node_modules/  the Khronos gltf-validator
-#   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test
+#   node_modules/  the Khronos gltf-validator, three.js and playwright-core (the VAT player test)
+#   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test and
+#   Chromium for the VAT player test
 # Idempotent: a second run only checks. Needs network access to PyPI and npm.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -38,8 +39,17 @@ if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command 
   $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null 2>&1 \
     || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null; }
 fi
-if [ ! -f node_modules/gltf-validator/package.json ]; then
-  echo "setup: installing gltf-validator into node_modules"
+if ! command -v chromium >/dev/null; then
+  echo "setup: installing chromium (the VAT player test's headless browser)"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get install -y -qq chromium >/dev/null 2>&1 \
+    || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq chromium >/dev/null; }
+fi
+if [ ! -f node_modules/gltf-validator/package.json ] || [ ! -f node_modules/three/package.json ] \
+  || [ ! -f node_modules/playwright-core/package.json ]; then
+  echo "setup: installing gltf-validator, three and playwright-core into node_modules"
   npm ci --no-audit --no-fund --silent >/dev/null
 fi
 echo "setup: test clients ready (.venv, node_modules)"

@@ -45,7 +45,7 @@ enum Command {
     Bake {
         /// A scene file (.toml) or a mesh (.glb, .gltf, .obj, .usda, .usdc, .usdz).
         input: PathBuf,
-        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .abc, .pc2, .mdd).
+        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .abc, .pc2, .mdd, or .vat: a folder of vertex animation textures).
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// Number of output frames (frame 1 is the initial state).
@@ -260,6 +260,36 @@ fn run(command: Command) -> Result<(), Failure> {
     }
 }
 
+/// What the bake's summary names: each file, except that the files of a folder output
+/// (`out.vat/…`) are named once, as the folder with their count.
+fn output_lines(outputs: &[PathBuf]) -> Vec<String> {
+    let folder_of = |p: &Path| {
+        p.ancestors()
+            .find(|a| springbake_pipeline::outputs::is_folder_output(a))
+            .map(Path::to_path_buf)
+    };
+    let mut lines: Vec<(Option<PathBuf>, String, usize)> = Vec::new();
+    for out in outputs {
+        match folder_of(out) {
+            Some(folder) => match lines
+                .iter_mut()
+                .find(|(f, _, _)| f.as_ref() == Some(&folder))
+            {
+                Some(line) => line.2 += 1,
+                None => lines.push((Some(folder.clone()), folder.display().to_string(), 1)),
+            },
+            None => lines.push((None, out.display().to_string(), 1)),
+        }
+    }
+    lines
+        .into_iter()
+        .map(|(folder, name, count)| match folder {
+            Some(_) => format!("{name}/ ({count} files)"),
+            None => name,
+        })
+        .collect()
+}
+
 fn is_html(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
@@ -441,14 +471,13 @@ fn run_bake(
     let r = &outcome.report;
     let nodes: usize = r.bodies.iter().map(|b| b.nodes).sum();
     let inverted = r.frames.iter().map(|f| f.inverted_cells).max().unwrap_or(0);
-    for out in &outcome.outputs {
+    for out in output_lines(&outcome.outputs) {
         println!(
-            "baked {} frames of {} bodies ({nodes} nodes) in {:.2} s (simulate {:.2} s): {}",
+            "baked {} frames of {} bodies ({nodes} nodes) in {:.2} s (simulate {:.2} s): {out}",
             r.frames.len(),
             r.bodies.len(),
             r.seconds.import + r.seconds.fit + r.seconds.simulate + r.seconds.export,
             r.seconds.simulate,
-            out.display()
         );
     }
     if inverted > 0 {

@@ -156,6 +156,23 @@ pub struct ImportedScene {
     pub notes: Vec<String>,
 }
 
+impl ImportedScene {
+    /// The source's world (source units, its up axis) to Y-up metres, the frame of glTF,
+    /// Alembic and the vertex animation textures: a Z-up world turns `(x, y, z) → (x, z, −y)`.
+    pub fn y_up_metres_from_world(&self) -> Matrix4<f64> {
+        let axes = match self.up_axis {
+            UpAxis::Y => Matrix4::identity(),
+            UpAxis::Z => Matrix4::new(
+                1.0, 0.0, 0.0, 0.0, //
+                0.0, 0.0, 1.0, 0.0, //
+                0.0, -1.0, 0.0, 0.0, //
+                0.0, 0.0, 0.0, 1.0,
+            ),
+        };
+        axes * Matrix4::new_scaling(self.meters_per_unit)
+    }
+}
+
 /// A material's look, as a metallic-roughness surface (what glTF and USD preview surfaces
 /// hold).
 #[derive(Debug, Clone, PartialEq)]
@@ -216,4 +233,35 @@ pub fn vertex_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> 
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(up_axis: UpAxis, meters_per_unit: f64) -> ImportedScene {
+        ImportedScene {
+            meshes: Vec::new(),
+            up_axis,
+            meters_per_unit,
+            source: SourceDocument {
+                path: PathBuf::from("s.usda"),
+                importer: "usd".into(),
+                read_root: None,
+            },
+            materials: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn z_up_centimetres_become_y_up_metres() {
+        let m = scene(UpAxis::Z, 0.01).y_up_metres_from_world();
+        let p = m.transform_point(&Point3::new(100.0, 200.0, 300.0));
+        assert!((p - Point3::new(1.0, 3.0, -2.0)).norm() < 1e-12, "{p}");
+        assert_eq!(
+            scene(UpAxis::Y, 1.0).y_up_metres_from_world(),
+            Matrix4::identity()
+        );
+    }
 }

@@ -19,7 +19,7 @@
 //! Output is deterministic: JSON objects are ordered maps and everything is appended in a
 //! fixed order.
 
-mod builder;
+pub(crate) mod builder;
 mod pca;
 
 use builder::{image_mime, uri_encode, DocBuilder};

@@ -4,6 +4,7 @@ use springbake_core::plugin::{Plugin, Registry};
 
 pub mod gltf;
 pub mod pointcache;
+pub mod vat;
 
 /// Registers every built-in exporter on a host's [`Registry`].
 #[derive(Debug, Clone, Copy, Default)]
@@ -14,6 +15,7 @@ impl Plugin for BuiltinExporters {
         registry
             .register_exporter(gltf::GltfExporter)
             .register_exporter(pointcache::Pc2Exporter)
-            .register_exporter(pointcache::MddExporter);
+            .register_exporter(pointcache::MddExporter)
+            .register_exporter(vat::VatExporter);
     }
 }

@@ -45,6 +45,13 @@ pub fn refuse_overwriting_inputs(loaded: &LoadedScene, output: &Path) -> Result<
     }
 }
 
+/// Outputs that are folders of files (vertex animation textures, `out.vat/`).
+pub fn is_folder_output(output: &Path) -> bool {
+    output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vat"))
+}
+
 /// Checks, before simulating, that a file can be created where `output` goes: the nearest
 /// folder that exists on its path must be a folder we can create files in, and `output`
 /// itself must not be a folder. Exit code 2 when not (the user's path).
@@ -55,10 +62,18 @@ pub fn check_writable(output: &Path, what: &str) -> Result<(), PipelineError> {
             output.display()
         )))
     };
-    if output.is_dir() {
+    let folder_output = is_folder_output(output);
+    if output.is_dir() && !folder_output {
         return refuse("it is a folder; give a file name".into());
     }
-    let mut folder = output.parent().unwrap_or(Path::new("")).to_path_buf();
+    if output.exists() && folder_output && !output.is_dir() {
+        return refuse("it is a file, and this output is a folder".into());
+    }
+    let mut folder = if folder_output && output.is_dir() {
+        output.to_path_buf()
+    } else {
+        output.parent().unwrap_or(Path::new("")).to_path_buf()
+    };
     loop {
         if folder.as_os_str().is_empty() {
             folder = PathBuf::from(".");

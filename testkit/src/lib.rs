@@ -83,6 +83,28 @@ pub fn run_python_client(script: &str, args: &[&str]) -> String {
     stdout
 }
 
+/// Run a Node.js test client from `tests/clients/` in the workspace root; panics with its output
+/// when it fails. Returns its stdout.
+pub fn run_node_client(script: &str, args: &[&str]) -> String {
+    let root = workspace_root();
+    let path = root.join("tests/clients").join(script);
+    let out = Command::new("node")
+        .arg(&path)
+        .args(args)
+        .current_dir(&root)
+        .output()
+        .unwrap_or_else(|e| panic!("start node {}: {e}", path.display()));
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{script} {args:?} failed ({}):\nstdout:\n{stdout}\nstderr:\n{}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr),
+        setup_hint()
+    );
+    stdout
+}
+
 /// The last line of a client's stdout parsed as JSON (clients print their result last; Blender
 /// prints its own chatter before it).
 pub fn last_json_line(stdout: &str) -> serde_json::Value {

@@ -20,11 +20,10 @@
 
 use crate::export::{check_frames, prim_name};
 use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge_of, Bridge};
-use nalgebra::Matrix4;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::{BakedMesh, BakedScene};
-use springbake_core::display::{vertex_normals, DisplayMesh, ImportedScene, UpAxis};
+use springbake_core::display::{vertex_normals, DisplayMesh, ImportedScene};
 use springbake_core::plugin::{ExportSettings, Exporter, IoErrorKind, OutputFile, PluginError};
 use std::collections::HashSet;
 use std::path::Path;
@@ -40,20 +39,6 @@ static ALEMBIC_BRIDGE: Bridge = Bridge {
     package_role: "Python's alembic3d (PyAlembic bindings)",
     loaded: OnceLock::new(),
 };
-
-/// Source world (source units, the scene's up axis) to Alembic's Y-up metres.
-pub fn alembic_from_source(up: UpAxis, meters_per_unit: f64) -> Matrix4<f64> {
-    let axes = match up {
-        UpAxis::Y => Matrix4::identity(),
-        UpAxis::Z => Matrix4::new(
-            1.0, 0.0, 0.0, 0.0, //
-            0.0, 0.0, 1.0, 0.0, //
-            0.0, -1.0, 0.0, 0.0, //
-            0.0, 0.0, 0.0, 1.0,
-        ),
-    };
-    axes * Matrix4::new_scaling(meters_per_unit)
-}
 
 /// One mesh as the bridge writes it: flat little-endian arrays.
 struct ArchiveMesh {
@@ -145,7 +130,7 @@ impl AlembicExporter {
                 format!("fps {} is not positive", baked.fps),
             ));
         }
-        let to_alembic = alembic_from_source(scene.up_axis, scene.meters_per_unit);
+        let to_alembic = scene.y_up_metres_from_world();
         let mut taken = HashSet::new();
         let mut meshes = Vec::new();
         for bm in &baked.meshes {
@@ -236,20 +221,5 @@ impl Exporter for AlembicExporter {
             path: out.to_path_buf(),
             bytes,
         }])
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::Point3;
-
-    #[test]
-    fn z_up_centimetres_become_y_up_metres() {
-        let m = alembic_from_source(UpAxis::Z, 0.01);
-        let p = m.transform_point(&Point3::new(100.0, 200.0, 300.0));
-        assert!((p - Point3::new(1.0, 3.0, -2.0)).norm() < 1e-12, "{p}");
-        let m = alembic_from_source(UpAxis::Y, 1.0);
-        assert_eq!(m, Matrix4::identity());
     }
 }
