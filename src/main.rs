@@ -243,11 +243,11 @@ fn run(command: Command) -> Result<(), Failure> {
             let registry = default_registry();
             println!("importers:");
             for i in registry.importers() {
-                println!("  {:<6} {}", i.name(), i.extensions().join(", "));
+                println!("  {:<8} {}", i.name(), i.extensions().join(", "));
             }
             println!("exporters:");
             for e in registry.exporters() {
-                println!("  {:<6} {}", e.name(), e.extensions().join(", "));
+                println!("  {:<8} {}", e.name(), e.extensions().join(", "));
             }
             Ok(())
         }

@@ -280,7 +280,10 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         world.body_contact.model == super::body_contact::ContactModel::ElasticLayer;
     log_contacts(world, &model, dt);
     let time = world.time;
-    model.restitution.before(world, dt);
+    let touch = RESTITUTION_CONTACT_TOLERANCE * model.shortest_edge;
+    model
+        .restitution
+        .before(world, dt, model.shortest_edge, touch);
     predict(world, &mut model, dt);
     shift_bodies(world, &mut model);
     bind_paths(world, &mut model, time + dt);
@@ -298,7 +301,6 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
             .solve_barriers(&mut world.nodes.position, w, moved);
     }
     update_velocities(world, &model, dt);
-    let touch = RESTITUTION_CONTACT_TOLERANCE * model.shortest_edge;
     model
         .restitution
         .after(world, dt, touch, &model.collider_touch);

@@ -12,6 +12,7 @@
 //! where the cells resolve the impact and bounce the body by themselves (rubber, jelly, foam).
 //! Resting contact (approach slower than gravity's two substeps) gets none.
 
+use super::super::contact::Plane;
 use super::super::deformation_damping::{rigid_motion_in, RigidMotion, RigidScratch};
 use super::super::World;
 use nalgebra::Vector3;
@@ -28,10 +29,16 @@ struct StiffBody {
     body: usize,
     /// Time its elastic wave takes across the body's largest extent, s.
     crossing: f64,
+    /// That wave's speed, m/s (`crossing × wave_speed` is the body's largest extent).
+    wave_speed: f64,
     /// Restitution of its material.
     e: f64,
     /// Its display-surface contact points (indices into `World::surface`).
     surface: Vec<u32>,
+    /// Every surface point is a convex combination of its cell's nodes (trilinear weights in
+    /// `[0, 1]`): then a point is no nearer a plane than the nearest of the body's nodes, and
+    /// the nodes alone tell whether the body touches a plane.
+    convex: bool,
     /// Per plane, then per static collider: touched at the end of the last substep.
     touching: Vec<bool>,
     /// Rigid motion at the start of the current substep.
@@ -43,6 +50,10 @@ struct StiffBody {
 pub(crate) struct Restitution {
     bodies: Vec<StiffBody>,
     scratch: RigidScratch,
+    /// A resting body's points near a plane, with their heights above it, and their
+    /// accumulated impulses (scratch).
+    points: Vec<(V3, f64)>,
+    impulses: Vec<f64>,
 }
 
 impl Restitution {
@@ -69,14 +80,21 @@ impl Restitution {
                     hi = hi.sup(&world.rest[i]);
                 }
                 let speed = (material.young_pa / material.density_kg_m3).sqrt();
-                let surface = (0..world.surface.len() as u32)
+                let surface: Vec<u32> = (0..world.surface.len() as u32)
                     .filter(|&k| world.surface.body[k as usize] as usize == b)
                     .collect();
+                let convex = surface.iter().all(|&k| {
+                    world.surface.weights[k as usize]
+                        .iter()
+                        .all(|w| (-1e-12..=1.0 + 1e-12).contains(w))
+                });
                 Some(StiffBody {
                     body: b,
                     crossing: (hi - lo).max() / speed,
+                    wave_speed: speed,
                     e,
                     surface,
+                    convex,
                     touching: vec![false; planes],
                     before: None,
                 })
@@ -85,6 +103,8 @@ impl Restitution {
         Restitution {
             bodies,
             scratch: RigidScratch::default(),
+            points: Vec::new(),
+            impulses: Vec::new(),
         }
     }
 
@@ -95,13 +115,50 @@ impl Restitution {
             .clamp(0.0, 1.0)
     }
 
-    /// Records the stiff bodies' rigid motion at the substep's start.
-    pub(crate) fn before(&mut self, world: &World, dt: f64) {
-        for s in &mut self.bodies {
-            s.before = (Self::weight(s, dt) > 0.0).then(|| {
-                let nodes = world.bodies[s.body].nodes.clone();
-                rigid_motion_in(&world.nodes, nodes, &mut self.scratch)
-            });
+    /// At the substep's start, for the stiff bodies: records the rigid motion of those that
+    /// may make a new contact in it (with a static collider they are not yet touching, or
+    /// within `margin` plus twice a node's travel in the substep of a plane they are not yet
+    /// touching: a body already on a plane cannot newly hit it within the substep, one farther
+    /// away would have to cross more than `margin`, a cell edge, beyond its own motion), and
+    /// supports those resting on a plane (`support`).
+    pub(crate) fn before(&mut self, world: &mut World, dt: f64, margin: f64, tolerance: f64) {
+        let planes = world.settings.planes.len();
+        let Restitution {
+            bodies,
+            scratch,
+            points,
+            impulses,
+        } = self;
+        for s in bodies.iter_mut() {
+            s.before = None;
+            let weight = Self::weight(s, dt);
+            if weight <= 0.0 {
+                continue;
+            }
+            let nodes = world.bodies[s.body].nodes.clone();
+            let (x, v) = (&world.nodes.position, &world.nodes.velocity);
+            let near_collider = s.touching[planes..].iter().any(|t| !t);
+            let near_plane = || {
+                world
+                    .settings
+                    .planes
+                    .iter()
+                    .enumerate()
+                    .any(|(slot, plane)| {
+                        !s.touching[slot]
+                            && nodes.clone().any(|i| {
+                                plane.normal.dot(&x[i]) - plane.offset
+                                    <= margin + 2.0 * v[i].norm() * dt
+                            })
+                    })
+            };
+            let resting = s.touching[..planes].iter().any(|&t| t);
+            if near_collider || near_plane() || resting {
+                s.before = Some(rigid_motion_in(&world.nodes, nodes.clone(), scratch));
+            }
+            if resting {
+                support(world, s, weight, dt, tolerance, (points, impulses));
+            }
         }
     }
 
@@ -144,7 +201,11 @@ impl Restitution {
                             count += 1;
                         }
                     }
-                    for &k in &s.surface {
+                    // The nodes decide touching for a convex embedding; the surface points
+                    // only refine where a new impact is.
+                    let settled = count > 0 && s.touching[slot];
+                    let skip_points = s.convex && (count == 0 || settled);
+                    for &k in s.surface.iter().filter(|_| !skip_points) {
                         let p = point(k);
                         if plane.normal.dot(&p) - plane.offset <= tolerance {
                             sum += p;
@@ -172,30 +233,185 @@ impl Restitution {
                 let Some(before) = &s.before else {
                     continue;
                 };
-                let contact = sum / count as f64;
+                // On a plane, the impact is where the mesh meets it this substep: every point
+                // within a substep's approach of it (the contact pass leaves a flat face's
+                // points a little uneven, and the few within `tolerance` alone would put the
+                // impulse off the face's centre and spin a box that landed flat).
+                let contact = match world.settings.planes.get(slot) {
+                    Some(plane) => {
+                        let points = &mut self.points;
+                        let first = mesh_on_plane(world, s, plane, tolerance, points)
+                            .unwrap_or(sum / count as f64);
+                        let closing = (-before.velocity_at(&first).dot(&plane.normal)).max(0.0);
+                        mesh_on_plane(world, s, plane, tolerance + closing * dt, points)
+                            .unwrap_or(first)
+                    }
+                    None => sum / count as f64,
+                };
                 let n = normal.normalize();
                 let approach = before.velocity_at(&contact).dot(&n);
                 if approach > -resting {
                     continue;
                 }
-                let after = rigid_motion_in(&world.nodes, nodes.clone(), &mut self.scratch);
+                let mut after = rigid_motion_in(&world.nodes, nodes.clone(), &mut self.scratch);
                 let target = -s.e * weight * approach;
-                let r = contact - after.centre;
-                let now = after.velocity_at(&contact).dot(&n);
-                if now >= target || after.mass <= 0.0 {
-                    continue;
-                }
-                let arm = r.cross(&n);
-                let k = 1.0 / after.mass + arm.dot(&(after.inv_inertia * arm));
-                let j = (target - now) / k;
-                let dv = n * (j / after.mass);
-                let dw = after.inv_inertia * arm * j;
-                let nodes_mut = &mut world.nodes;
-                for i in nodes.clone() {
-                    let ri = nodes_mut.position[i] - after.centre;
-                    nodes_mut.velocity[i] += dv + dw.cross(&ri);
-                }
+                push_rigidly(world, nodes.clone(), &mut after, contact, n, target);
             }
         }
     }
+}
+
+/// Gives the nodes of `range` the impulse on their rigid motion `rigid` at `contact` along
+/// `n` that brings the rigid velocity there along `n` up to `target` (nothing when it is
+/// already there). Returns the impulse, N·s, and updates `rigid`.
+fn push_rigidly(
+    world: &mut World,
+    range: std::ops::Range<usize>,
+    rigid: &mut RigidMotion,
+    contact: V3,
+    n: V3,
+    target: f64,
+) -> f64 {
+    let now = rigid.velocity_at(&contact).dot(&n);
+    if now >= target || rigid.mass <= 0.0 {
+        return 0.0;
+    }
+    let j = (target - now) / inverse_mass_along(rigid, contact, n);
+    apply_impulse(world, range, rigid, contact, n * j);
+    j
+}
+
+/// How much the rigid velocity at `at` along `dir` changes per unit impulse there.
+fn inverse_mass_along(rigid: &RigidMotion, at: V3, dir: V3) -> f64 {
+    let arm = (at - rigid.centre).cross(&dir);
+    1.0 / rigid.mass + arm.dot(&(rigid.inv_inertia * arm))
+}
+
+/// Adds `impulse` at `at` to the rigid motion of the nodes of `range` (and to `rigid`).
+fn apply_impulse(
+    world: &mut World,
+    range: std::ops::Range<usize>,
+    rigid: &mut RigidMotion,
+    at: V3,
+    impulse: V3,
+) {
+    let dv = impulse / rigid.mass;
+    let dw = rigid.inv_inertia * (at - rigid.centre).cross(&impulse);
+    let nodes = &mut world.nodes;
+    for i in range {
+        let ri = nodes.position[i] - rigid.centre;
+        nodes.velocity[i] += dv + dw.cross(&ri);
+    }
+    rigid.velocity += dv;
+    rigid.angular_velocity += dw;
+}
+
+/// A stiff body resting on a plane is rigid at the substep's scale, so the plane holds it up
+/// as a whole: before gravity moves it, impulses on its rigid motion at its points on the
+/// plane cancel the approach gravity would give each of them, and Coulomb friction (the
+/// floor's coefficient, bounded by each point's impulse) the sliding there, both times the
+/// body's restitution weight. Sequential impulses over the points, accumulated and kept
+/// pushing (never pulling), a few passes: a box on its face rests on all four corners rather
+/// than rocking about one. Left to the contact projection, gravity would press the bottom
+/// cells by `g Δt²` every substep, more than the one sweep carries up the body, and a small
+/// body (a 1 cm cube, its wave crossing it many times a substep) folds under its own weight.
+fn support(
+    world: &mut World,
+    s: &StiffBody,
+    weight: f64,
+    dt: f64,
+    tolerance: f64,
+    (points, impulses): (&mut Vec<(V3, f64)>, &mut Vec<f64>),
+) {
+    /// Passes over a resting body's contact points.
+    const PASSES: usize = 4;
+    let Some(start) = s.before else {
+        return;
+    };
+    let mut rigid = start;
+    let (g, friction) = (world.settings.gravity, world.settings.layer.friction);
+    // Points this substep's rigid motion and gravity could bring onto the plane.
+    let extent = s.crossing * s.wave_speed;
+    let reach = tolerance
+        + (start.velocity.norm() + start.angular_velocity.norm() * extent + g.norm() * dt) * dt;
+    for slot in 0..world.settings.planes.len() {
+        let plane = world.settings.planes[slot];
+        if !s.touching[slot] || mesh_on_plane(world, s, &plane, reach, points).is_none() {
+            continue;
+        }
+        let n = plane.normal;
+        impulses.clear();
+        impulses.resize(points.len(), 0.0);
+        for _ in 0..PASSES {
+            for ((p, height), total) in points.iter().zip(impulses.iter_mut()) {
+                // Speculative: a point above the plane may close the gap, no more.
+                let allowed = -height.max(0.0) / dt;
+                let approach = (rigid.velocity_at(p) + g * dt).dot(&n);
+                let push = weight * (allowed - approach) / inverse_mass_along(&rigid, *p, n);
+                let j = (*total + push).max(0.0);
+                nudge(&mut rigid, *p, n * (j - *total));
+                *total = j;
+            }
+        }
+        for ((p, _), total) in points.iter().zip(impulses.iter()) {
+            let v = rigid.velocity_at(p) + g * dt;
+            let slide = v - n * v.dot(&n);
+            let speed = slide.norm();
+            if speed > 0.0 && *total > 0.0 {
+                let t = -slide / speed;
+                let stop = weight * speed / inverse_mass_along(&rigid, *p, t);
+                nudge(&mut rigid, *p, t * stop.min(friction * total));
+            }
+        }
+    }
+    let (dv, dw) = (
+        rigid.velocity - start.velocity,
+        rigid.angular_velocity - start.angular_velocity,
+    );
+    let nodes = &mut world.nodes;
+    for i in world.bodies[s.body].nodes.clone() {
+        nodes.velocity[i] += dv + dw.cross(&(nodes.position[i] - start.centre));
+    }
+}
+
+/// `impulse` at `at` on the rigid motion alone.
+fn nudge(rigid: &mut RigidMotion, at: V3, impulse: V3) {
+    rigid.velocity += impulse / rigid.mass;
+    rigid.angular_velocity += rigid.inv_inertia * (at - rigid.centre).cross(&impulse);
+}
+
+/// Where a body's mesh is on `plane`: its surface points and the nodes that take contact
+/// within `tolerance` of it, into `out`, and their centre (a lattice's nodes outside the mesh
+/// may lie on the plane, or below it, and would hold a tilted box up on its lattice's face,
+/// or put the impact of a flat face off its centre).
+fn mesh_on_plane(
+    world: &World,
+    s: &StiffBody,
+    plane: &Plane,
+    tolerance: f64,
+    out: &mut Vec<(V3, f64)>,
+) -> Option<V3> {
+    let (x, sp, takes) = (&world.nodes.position, &world.surface, &world.node_contact);
+    out.clear();
+    let height = |p: V3| (p, plane.normal.dot(&p) - plane.offset);
+    let on = |&(_, h): &(V3, f64)| h <= tolerance;
+    let nodes = world.bodies[s.body].nodes.clone();
+    out.extend(nodes.filter(|&i| takes[i]).map(|i| height(x[i])).filter(on));
+    // A point of these barely deforming bodies lies within one and a half cell diagonals of its
+    // cell's first node (`reach`, three, allows for stretched cells): that node tells which are far.
+    let near = |k: &&u32| {
+        let first = x[sp.nodes[**k as usize][0] as usize];
+        plane.normal.dot(&first) - plane.offset <= tolerance + 0.5 * sp.reach[**k as usize]
+    };
+    out.extend(
+        s.surface
+            .iter()
+            .filter(near)
+            .map(|&k| {
+                let (ids, weights) = (&sp.nodes[k as usize], &sp.weights[k as usize]);
+                height((0..8).map(|c| x[ids[c] as usize] * weights[c]).sum::<V3>())
+            })
+            .filter(on),
+    );
+    (!out.is_empty()).then(|| out.iter().map(|(p, _)| p).sum::<V3>() / out.len() as f64)
 }
