@@ -7,6 +7,7 @@
 //!                              TEXCOORD_0 the source's UVs, TEXCOORD_1 the texel lookup
 //! out.vat/tex/out_pos.exr      RGB offset of each vertex from its rest position, m (float32)
 //! out.vat/tex/out_rot.exr      RGBA quaternion (x, y, z, w) taking +Y to the vertex normal
+//!                              (float16)
 //! out.vat/tex/out_pos.png      8-bit offsets, normalised by the bounds in the JSON ...
 //! out.vat/tex/out_pos2.png     ... and what the first one missed, times 100 (Labs "two
 //!                              position textures"; decode `t = pos + pos2 · 0.01`)
@@ -36,7 +37,7 @@ use springbake_core::bake::BakedScene;
 use springbake_core::display::{vertex_normals, ImportedScene};
 use springbake_core::plugin::{ExportSettings, Exporter, OutputFile, PluginError};
 use std::path::Path;
-use textures::{exr_bytes, png_bytes, Rgba};
+use textures::{exr_bytes, png_bytes, Depth, Rgba};
 pub use textures::{join_ldr, normal_rotation, split_ldr};
 
 /// Texture width before it grows for long bakes (Labs' default target size).
@@ -277,13 +278,13 @@ impl Exporter for VatExporter {
         }
         let encode = |e: String| PluginError::invalid(out, e);
         let (w, h) = (layout.width, layout.height());
-        let exr = |texels| {
-            exr_bytes(&Rgba {
+        let exr = |texels, depth| {
+            let image = Rgba {
                 width: w,
                 height: h,
                 texels,
-            })
-            .map_err(encode)
+            };
+            exr_bytes(&image, depth).map_err(encode)
         };
         let file = |folder: &str, suffix: &str| out.join(folder).join(format!("{stem}{suffix}"));
         let data = json!([{
@@ -323,11 +324,11 @@ impl Exporter for VatExporter {
             },
             OutputFile {
                 path: file("tex", "_pos.exr"),
-                bytes: exr(pos)?,
+                bytes: exr(pos, Depth::Full)?,
             },
             OutputFile {
                 path: file("tex", "_rot.exr"),
-                bytes: exr(rot)?,
+                bytes: exr(rot, Depth::Half)?,
             },
             OutputFile {
                 path: file("tex", "_pos.png"),

@@ -2,7 +2,7 @@
 //! (no solver) of a two-part Blender glTF, declared Z-up in centimetres so the axes and units
 //! conversion is exercised, written by the VAT exporter; the rest mesh plus the float EXR
 //! offsets give every baked vertex to 1e-5 m, the 8-bit PNG pair to its quantisation (the
-//! offsets' range / 51 000), the rotation texture turns +Y into the deformed normal; the
+//! offsets' range / 51 000), the (float16) rotation texture turns +Y into the deformed normal to 4e-3; the
 //! mesh's lookup UVs and the JSON agree with the layout; the same bake gives the same bytes.
 
 #![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
@@ -198,7 +198,8 @@ fn textures_decode_to_the_baked_positions_and_normals() {
             ));
             let n = q * Vector3::y();
             let want_n = Vector3::new(normals[v][0], normals[v][1], normals[v][2]).cast::<f64>();
-            assert!((n - want_n).norm() < 1e-4, "normal frame {f} vertex {v}");
+            // float16 quaternions: the normal to a few thousandths.
+            assert!((n - want_n).norm() < 4e-3, "normal frame {f} vertex {v}");
         }
     }
     // The lookup UV of a vertex is its frame-0 texel's centre, v from the top.

@@ -4,7 +4,7 @@
 //! is the normal.
 
 use exr::prelude::{
-    Blocks, Compression, Encoding, Image, Layer, LayerAttributes, LineOrder, SpecificChannels,
+    f16, Blocks, Compression, Encoding, Image, Layer, LayerAttributes, LineOrder, SpecificChannels,
     WritableImage,
 };
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
@@ -17,31 +17,53 @@ pub struct Rgba {
     pub texels: Vec<[f32; 4]>,
 }
 
-/// The image as a 32-bit float RGBA EXR (ZIP, increasing scan lines, written serially so the
+/// Bits per channel of an EXR.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Depth {
+    /// float32: positions (a metre-sized body keeps 0.1 µm).
+    Full,
+    /// float16: rotations (unit quaternions to 1e-3, half the bytes).
+    Half,
+}
+
+/// The image as an RGBA EXR of `depth` (ZIP, increasing scan lines, written serially so the
 /// same texels give the same bytes).
-pub fn exr_bytes(image: &Rgba) -> Result<Vec<u8>, String> {
+pub fn exr_bytes(image: &Rgba, depth: Depth) -> Result<Vec<u8>, String> {
     let width = image.width;
-    let pixels = |p: exr::math::Vec2<usize>| {
-        let t = image.texels[p.y() * width + p.x()];
-        (t[0], t[1], t[2], t[3])
-    };
+    let texel = |p: exr::math::Vec2<usize>| image.texels[p.y() * width + p.x()];
     let encoding = Encoding {
         compression: Compression::ZIP16,
         blocks: Blocks::ScanLines,
         line_order: LineOrder::Increasing,
     };
-    let layer = Layer::new(
-        (image.width, image.height),
-        LayerAttributes::named("vat"),
-        encoding,
-        SpecificChannels::rgba(pixels),
-    );
+    let size = (image.width, image.height);
+    let attributes = LayerAttributes::named("vat");
     let mut out = Cursor::new(Vec::new());
-    Image::from_layer(layer)
-        .write()
-        .non_parallel()
-        .to_buffered(&mut out)
-        .map_err(|e| format!("EXR encoding: {e}"))?;
+    let written = match depth {
+        Depth::Full => {
+            let pixels = |p| {
+                let t = texel(p);
+                (t[0], t[1], t[2], t[3])
+            };
+            let layer = Layer::new(size, attributes, encoding, SpecificChannels::rgba(pixels));
+            Image::from_layer(layer)
+                .write()
+                .non_parallel()
+                .to_buffered(&mut out)
+        }
+        Depth::Half => {
+            let pixels = |p| {
+                let t = texel(p).map(f16::from_f32);
+                (t[0], t[1], t[2], t[3])
+            };
+            let layer = Layer::new(size, attributes, encoding, SpecificChannels::rgba(pixels));
+            Image::from_layer(layer)
+                .write()
+                .non_parallel()
+                .to_buffered(&mut out)
+        }
+    };
+    written.map_err(|e| format!("EXR encoding: {e}"))?;
     Ok(out.into_inner())
 }
 
@@ -148,8 +170,9 @@ mod tests {
             height: 2,
             texels: (0..6).map(|i| [i as f32, 0.5, -1.0, 1.0]).collect(),
         };
-        let a = exr_bytes(&image).unwrap();
-        assert_eq!(a, exr_bytes(&image).unwrap());
+        let a = exr_bytes(&image, Depth::Full).unwrap();
+        assert_eq!(a, exr_bytes(&image, Depth::Full).unwrap());
+        assert!(exr_bytes(&image, Depth::Half).unwrap().len() < a.len());
         assert!(a.starts_with(&[0x76, 0x2f, 0x31, 0x01]), "EXR magic");
     }
 }
