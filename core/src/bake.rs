@@ -33,6 +33,17 @@ pub struct BakedScene {
     pub meshes: Vec<BakedMesh>,
     /// What the bodies moved against (floor, manipulators), for players that show it.
     pub stage: Option<BakedStage>,
+    /// The particle effects, per emitter (empty without `[[emitter]]`s).
+    pub particles: Vec<BakedParticles>,
+}
+
+/// One emitter's particles over the bake, in Y-up metres (glTF's world frame, like the
+/// stage); exporters turn them into their own frame.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BakedParticles {
+    pub name: String,
+    /// One per output frame.
+    pub frames: Vec<crate::particles::ParticleFrame>,
 }
 
 /// The rigid surroundings of a bake, in Y-up metres (glTF's world frame): what a viewer draws

@@ -43,6 +43,9 @@ pub struct SceneFile {
     /// Secondary action: child bodies anchored to a parent through three nodes (eq 4.1).
     #[serde(default)]
     pub attach: Vec<AttachSection>,
+    /// Particle sources (Terasawa §2.3; see `crate::particles`).
+    #[serde(default)]
+    pub emitter: Vec<crate::particles::EmitterSection>,
     /// Variations of this scene that `springbake wedge` bakes (a bake ignores it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wedge: Option<WedgeSection>,

@@ -960,6 +960,7 @@ mod tests {
             },
         };
         let baked = BakedScene {
+            particles: Vec::new(),
             fps: 24.0,
             frame_count: 1,
             meshes: vec![],

@@ -148,6 +148,7 @@ fn lattice_bake(mesh_index: usize, mesh: &DisplayMesh) -> BakedMesh {
 
 fn bake_all(scene: &ImportedScene) -> BakedScene {
     BakedScene {
+        particles: Vec::new(),
         stage: None,
         fps: FPS,
         frame_count: FRAMES,
@@ -577,6 +578,7 @@ fn shared_mesh_gets_a_copy_per_baked_node() {
     .unwrap();
     let scene = import(&src);
     let mut baked = BakedScene {
+        particles: Vec::new(),
         fps: FPS,
         frame_count: FRAMES,
         meshes: vec![],
@@ -818,6 +820,7 @@ fn textures_referenced_by_uri_are_embedded() {
         })
         .collect();
     let baked = BakedScene {
+        particles: Vec::new(),
         stage: None,
         fps: FPS,
         frame_count: FRAMES,

@@ -46,6 +46,7 @@ fn displacement(k: usize, p: [f32; 3]) -> [f64; 3] {
 
 fn synthetic_bake(scene: &ImportedScene) -> BakedScene {
     BakedScene {
+        particles: Vec::new(),
         fps: FPS,
         stage: None,
         frame_count: SAMPLES,

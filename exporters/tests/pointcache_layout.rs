@@ -31,6 +31,7 @@ fn settings(path: &str) -> ExportSettings {
 /// A bake where display vertex v of frame f sits at its rest position + (f, 10 f, 100 f).
 fn shifted_bake(scene: &ImportedScene, frames: usize, fps: f64) -> BakedScene {
     BakedScene {
+        particles: Vec::new(),
         fps,
         stage: None,
         frame_count: frames,

@@ -36,6 +36,7 @@ fn displaced(p: [f32; 3], f: usize) -> [f32; 3] {
 
 fn synthetic_bake(scene: &ImportedScene) -> BakedScene {
     BakedScene {
+        particles: Vec::new(),
         stage: None,
         fps: 24.0,
         frame_count: FRAMES,

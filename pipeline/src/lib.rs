@@ -13,6 +13,7 @@
 
 pub mod budget;
 mod colliders;
+mod effects;
 pub mod events;
 mod frame;
 mod models;
@@ -356,7 +357,58 @@ pub fn export_with(
             registry.export_extensions().join(", ")
         ))
     })?;
-    Ok(exporter.export(&prepared.export_scene, baked, settings)?)
+    let mut files = exporter.export(&prepared.export_scene, baked, settings)?;
+    if !baked.particles.is_empty() && exporter.name() != "usd" {
+        files.extend(particles_beside(registry, prepared, baked, settings)?);
+    }
+    Ok(files)
+}
+
+/// Particle effects of a bake whose output format has no point clouds: a USD stage beside
+/// it, `<output stem>.particles.usda`, with one `Points` per emitter (Blender, Houdini and
+/// usdview read them as point clouds).
+fn particles_beside(
+    registry: &Registry,
+    prepared: &Prepared,
+    baked: &springbake_core::bake::BakedScene,
+    settings: &ExportSettings,
+) -> Result<Vec<OutputFile>, PipelineError> {
+    let output = &settings.path;
+    let stem = output
+        .file_stem()
+        .map_or_else(|| "baked".to_owned(), |s| s.to_string_lossy().into_owned());
+    let path = output.with_file_name(format!("{stem}.particles.usda"));
+    let usd = registry.exporter_for(&path).ok_or_else(|| {
+        PipelineError::Usage(format!(
+            "{}: the particles need the USD exporter, which this build lacks",
+            path.display()
+        ))
+    })?;
+    let source = &prepared.export_scene;
+    let stage = springbake_core::display::ImportedScene {
+        meshes: Vec::new(),
+        up_axis: source.up_axis,
+        meters_per_unit: source.meters_per_unit,
+        source: springbake_core::display::SourceDocument {
+            path: path.clone(),
+            importer: "springbake".into(),
+            read_root: None,
+        },
+        materials: Vec::new(),
+        notes: Vec::new(),
+    };
+    let particles = springbake_core::bake::BakedScene {
+        fps: baked.fps,
+        frame_count: baked.frame_count,
+        meshes: Vec::new(),
+        stage: None,
+        particles: baked.particles.clone(),
+    };
+    let settings = ExportSettings {
+        path,
+        ..settings.clone()
+    };
+    Ok(usd.export(&stage, &particles, &settings)?)
 }
 
 /// Hooks a host passes to a bake: cancellation (polled every frame), progress, and the

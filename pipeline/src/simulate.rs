@@ -604,10 +604,12 @@ impl Prepared {
             })
             .collect();
         let mut diagnostics = Vec::with_capacity(total);
+        let mut effects = crate::effects::Effects::new(scene, self)?;
         if let Some(events) = self.events.as_mut() {
             // Events of frame 1 (t = 0) act before it is recorded, like every later frame's.
             events.after_frame(&mut self.world, 1, fps)?;
         }
+        effects.start(self);
         let mut first = self.world.diagnostics(1);
         first.max_penetration = self.current_penetration();
         diagnostics.push(first);
@@ -630,6 +632,7 @@ impl Prepared {
             }
             diagnostics.push(d);
             self.record(&mut meshes, with_lattice);
+            effects.advance(self, (f - 2) as f64 / fps, 1.0 / fps);
             if let Some(p) = hooks.progress.as_mut() {
                 p(f, total);
             }
@@ -641,6 +644,7 @@ impl Prepared {
                 fps,
                 frame_count: total,
                 meshes,
+                particles: effects.finish(),
             },
             diagnostics,
         ))

@@ -52,6 +52,9 @@ fn positive(key: &str, value: f64, unit: &str) -> Result<(), String> {
 /// The scene's numbers in their physical ranges (module docs); `world.floor` is checked by
 /// [`floor`] (a bare mesh's bake leaves it NaN for "automatic").
 pub fn numbers(scene: &SceneFile) -> Result<(), String> {
+    for (i, e) in scene.emitter.iter().enumerate() {
+        e.check(&format!("emitter[{i}]"))?;
+    }
     if scene.output.frames > MAX_FRAMES {
         return Err(format!(
             "output.frames must be at most {MAX_FRAMES}, got {}",

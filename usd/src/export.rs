@@ -17,6 +17,7 @@
 
 use crate::import::read_stage;
 use crate::mesh::{extent, face_varying_normals, point_normals, Interpolation, RawMesh};
+use crate::particles::particles_spec;
 use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
@@ -410,6 +411,8 @@ impl UsdExporter {
                     .map_err(to_err)?;
                 spec.set_item("meters_per_unit", scene.meters_per_unit)
                     .map_err(to_err)?;
+                let particles = particles_spec(py, scene, baked).map_err(to_err)?;
+                spec.set_item("particles", particles).map_err(to_err)?;
                 bridge
                     .call_method1(
                         "write_source_stage",
@@ -506,6 +509,8 @@ impl UsdExporter {
                     .map_err(to_err)?;
                 spec.set_item("meters_per_unit", scene.meters_per_unit)
                     .map_err(to_err)?;
+                let particles = particles_spec(py, scene, baked).map_err(to_err)?;
+                spec.set_item("particles", particles).map_err(to_err)?;
                 bridge
                     .call_method1(
                         "write_new_stage",

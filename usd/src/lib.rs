@@ -11,6 +11,7 @@ pub mod alembic;
 pub mod export;
 pub mod import;
 pub mod mesh;
+pub mod particles;
 pub mod python;
 
 pub use alembic::AlembicExporter;

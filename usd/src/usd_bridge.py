@@ -378,6 +378,8 @@ def write_source_stage(source_path, out_path, spec):
         )
     if not stage.HasAuthoredMetadata("metersPerUnit"):
         UsdGeom.SetStageMetersPerUnit(stage, float(spec["meters_per_unit"]))
+    default = stage.GetDefaultPrim()
+    _author_particles(stage, spec.get("particles"), str(default.GetPath()) if default else "/")
     _set_stage_timing(stage, spec)
     _export(stage, out_path)
 
@@ -477,5 +479,38 @@ def write_new_stage(out_path, spec):
         face_count = len(memoryview(item["counts"]).cast("B")) // 4
         _bind_materials(mesh, item.get("material_faces") or [], looks, face_count)
         _author_frames(mesh, item, frame_count, location)
+    _author_particles(stage, spec.get("particles"), "/root")
     _set_stage_timing(stage, spec)
     _export(stage, out_path)
+
+def _author_particles(stage, particles, parent):
+    """One UsdGeom.Points per emitter under `parent`/particles: points, widths, ids, extent
+    and the primvar displayOpacity sampled at every frame (time code = frame index), a
+    particle count that changes from frame to frame."""
+    if not particles:
+        return
+    scope = parent.rstrip("/") + "/particles"
+    UsdGeom.Scope.Define(stage, scope)
+    for item in particles:
+        points = UsdGeom.Points.Define(stage, scope + "/" + item["prim"])
+        pts_attr = points.CreatePointsAttr()
+        widths_attr = points.CreateWidthsAttr()
+        ids_attr = points.CreateIdsAttr()
+        extent_attr = points.CreateExtentAttr()
+        opacity = UsdGeom.PrimvarsAPI(points).CreatePrimvar(
+            "displayOpacity", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+        )
+        points.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
+            Vt.Vec3fArray([Gf.Vec3f(*item["colour"])])
+        )
+        for f, frame in enumerate(item["frames"]):
+            t = Usd.TimeCode(float(f))
+            n = frame["count"]
+            pts = _vec3f_array(frame["positions"], n) if n else Vt.Vec3fArray()
+            widths = Vt.FloatArray.FromBuffer(memoryview(frame["widths"]).cast("B").cast("f")) if n else Vt.FloatArray()
+            pts_attr.Set(pts, t)
+            widths_attr.Set(widths, t)
+            ids_attr.Set(Vt.Int64Array.FromBuffer(memoryview(frame["ids"]).cast("B").cast("q")) if n else Vt.Int64Array(), t)
+            opacity.Set(Vt.FloatArray.FromBuffer(memoryview(frame["opacities"]).cast("B").cast("f")) if n else Vt.FloatArray(), t)
+            extent = UsdGeom.Points.ComputeExtent(pts, widths) if n else Vt.Vec3fArray([Gf.Vec3f(0.0), Gf.Vec3f(0.0)])
+            extent_attr.Set(extent, t)

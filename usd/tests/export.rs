@@ -22,6 +22,7 @@ fn displaced(p: [f32; 3], f: usize) -> [f32; 3] {
 
 fn bake(scene: &ImportedScene, frames: usize, fps: f64) -> BakedScene {
     BakedScene {
+        particles: Vec::new(),
         fps,
         stage: None,
         frame_count: frames,

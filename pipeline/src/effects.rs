@@ -1,0 +1,131 @@
+//! The bake's particle effects (`[[emitter]]`, see `springbake_core::particles`): emitted and
+//! integrated alongside the bodies, frame by frame, in the world's gravity and against its
+//! floor and walls; an emitter that follows a body rides on its centre of mass. Recorded in
+//! Y-up metres for the exporters.
+
+use crate::simulate::Prepared;
+use crate::PipelineError;
+use springbake_core::bake::BakedParticles;
+use springbake_core::display::UpAxis;
+use springbake_core::nalgebra::Vector3;
+use springbake_core::particles::{ParticleEnv, ParticleSystem};
+use springbake_core::scene::SceneFile;
+
+/// The emitters of one bake and what they recorded so far.
+pub struct Effects {
+    system: Option<ParticleSystem>,
+    /// Per emitter: the index of the followed body in [`Prepared::bodies`].
+    follow: Vec<Option<usize>>,
+    recorded: Vec<BakedParticles>,
+}
+
+impl Effects {
+    /// The scene's emitters; a `follow` that names no body is refused (exit 2).
+    pub fn new(scene: &SceneFile, prepared: &Prepared) -> Result<Effects, PipelineError> {
+        let mut follow = Vec::new();
+        for (i, e) in scene.emitter.iter().enumerate() {
+            follow.push(match &e.follow {
+                None => None,
+                Some(name) => Some(
+                    prepared
+                        .bodies
+                        .iter()
+                        .position(|b| {
+                            &b.name == name
+                                || scene.body.get(b.section).and_then(|s| s.name.as_ref())
+                                    == Some(name)
+                        })
+                        .ok_or_else(|| {
+                            let names: Vec<&str> =
+                                prepared.bodies.iter().map(|b| b.name.as_str()).collect();
+                            PipelineError::Usage(format!(
+                                "emitter[{i}].follow names no body: {name:?} (bodies: {})",
+                                names.join(", ")
+                            ))
+                        })?,
+                ),
+            });
+        }
+        let system = (!scene.emitter.is_empty()).then(|| ParticleSystem::new(&scene.emitter));
+        let recorded = system
+            .as_ref()
+            .map(|s| {
+                s.names()
+                    .into_iter()
+                    .map(|name| BakedParticles {
+                        name,
+                        frames: Vec::new(),
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        Ok(Effects {
+            system,
+            follow,
+            recorded,
+        })
+    }
+
+    /// Frame 1 (t = 0): what is due at the start, recorded.
+    pub fn start(&mut self, prepared: &Prepared) {
+        self.step(prepared, 0.0, 0.0);
+    }
+
+    /// The frame from `time` to `time + dt`, recorded at its end.
+    pub fn advance(&mut self, prepared: &Prepared, time: f64, dt: f64) {
+        self.step(prepared, time, dt);
+    }
+
+    fn step(&mut self, prepared: &Prepared, time: f64, dt: f64) {
+        let Some(system) = self.system.as_mut() else {
+            return;
+        };
+        let world = &prepared.world;
+        let centres: Vec<Option<Vector3<f64>>> = self
+            .follow
+            .iter()
+            .map(|b| {
+                b.map(|b| {
+                    let nodes = world.bodies[prepared.bodies[b].handle.0].nodes.clone();
+                    let (mut moment, mut mass) = (Vector3::zeros(), 0.0);
+                    for i in nodes {
+                        moment += world.nodes.position[i] * world.nodes.mass[i];
+                        mass += world.nodes.mass[i];
+                    }
+                    if mass > 0.0 {
+                        moment / mass
+                    } else {
+                        Vector3::zeros()
+                    }
+                })
+            })
+            .collect();
+        let env = ParticleEnv {
+            gravity: world.settings.gravity,
+            up: prepared.frame.up_vector(),
+            planes: &world.settings.planes,
+            follow: &centres,
+        };
+        if dt > 0.0 {
+            system.advance(time, dt, &env);
+        } else {
+            system.emit(time, 0.0, &env);
+        }
+        let z_up = prepared.frame.up == UpAxis::Z;
+        let frames = system.snapshot(time + dt, |v| {
+            if z_up {
+                [v.x as f32, v.z as f32, -v.y as f32]
+            } else {
+                [v.x as f32, v.y as f32, v.z as f32]
+            }
+        });
+        for (record, frame) in self.recorded.iter_mut().zip(frames) {
+            record.frames.push(frame);
+        }
+    }
+
+    /// Every emitter's frames.
+    pub fn finish(self) -> Vec<BakedParticles> {
+        self.recorded
+    }
+}

@@ -1,0 +1,174 @@
+//! Particle effects (issue 20 part 1, Terasawa §2.3) through the CLI and their real clients:
+//! usd-core reads each emitter's `Points` (counts rising for streams and falling as bursts
+//! die, smoke's widths growing and opacity fading, ids with every point), Blender imports
+//! them as point clouds whose point counts change over time and stay above the floor; a glTF
+//! output gets the particles in a USD stage beside it; the same scene gives the same bytes;
+//! a `follow` that names no body is refused with exit code 2.
+#![allow(clippy::unwrap_used)]
+
+use springbake_testkit::{corpus_dir, last_json_line, run_python_client};
+use std::path::Path;
+use std::process::Command;
+
+const SCENE: &str = r#"
+[output]
+path = "OUTPUT"
+frames = 48
+
+[world]
+floor = 0.0
+
+[[body]]
+name = "ball"
+source = "icosphere.glb"
+cells = 6
+
+[[emitter]]
+name = "boom"
+kind = "explosion"
+position = [0, 1.5, 0]
+count = 2000
+speed = [2, 5]
+lifetime = [0.5, 1.5]
+seed = 3
+
+[[emitter]]
+name = "jet"
+kind = "fountain"
+position = [1, 0, 0]
+rate = 400
+speed = [3, 4]
+spread = 10
+
+[[emitter]]
+name = "puff"
+kind = "smoke"
+position = [-1, 0.5, 0]
+count = 300
+speed = [0.2, 0.5]
+size = [0.02, 0.3]
+opacity = [0.8, 0.0]
+lifetime = [1.5, 1.8]
+
+[[emitter]]
+name = "ring"
+kind = "splash"
+follow = "FOLLOW"
+radius = 0.5
+rate = 300
+speed = [1, 2]
+spread = 60
+"#;
+
+fn bake(dir: &Path, output: &str, follow: &str) -> std::process::Output {
+    let file = dir.join(format!("{output}.toml"));
+    let text = SCENE.replace("OUTPUT", output).replace("FOLLOW", follow);
+    std::fs::write(&file, text).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args(["bake", file.to_str().unwrap(), "--progress", "quiet"])
+        .output()
+        .unwrap()
+}
+
+fn baked(dir: &Path, output: &str) {
+    let out = bake(dir, output, "ball");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn column(report: &serde_json::Value, prim: &str, k: usize) -> Vec<f64> {
+    report[prim]
+        .as_array()
+        .unwrap_or_else(|| panic!("no {prim}: {report}"))
+        .iter()
+        .map(|row| row[k].as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn usd_core_and_blender_read_the_emitters_point_clouds() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(
+        corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    baked(d, "fx.usda");
+    let stage = d.join("fx.usda").to_string_lossy().into_owned();
+    let frames = ["0", "12", "24", "47"];
+    let mut args = vec![stage.as_str()];
+    args.extend(frames);
+    let usd = last_json_line(&run_python_client("particles_usd.py", &args));
+
+    let boom = column(&usd, "/root/particles/boom", 0);
+    assert_eq!(boom[0], 2000.0, "the burst at the start: {usd}");
+    assert!(boom[2] < boom[1] && boom[3] == 0.0, "bursts die: {boom:?}");
+    let jet = column(&usd, "/root/particles/jet", 0);
+    assert!((jet[2] - 400.0).abs() <= 2.0, "400/s for 1 s: {jet:?}");
+    assert!(
+        jet.windows(2).all(|w| w[0] < w[1]),
+        "a stream grows: {jet:?}"
+    );
+    let (width, opacity) = (
+        column(&usd, "/root/particles/puff", 1),
+        column(&usd, "/root/particles/puff", 2),
+    );
+    assert!(
+        width[0] < width[1] && width[1] < width[2],
+        "smoke grows: {width:?}"
+    );
+    assert!(
+        opacity[0] > opacity[1] && opacity[1] > opacity[2],
+        "and fades: {opacity:?}"
+    );
+    assert_eq!(
+        column(&usd, "/root/particles/ring", 0),
+        column(&usd, "/root/particles/ring", 3),
+        "an id per point"
+    );
+
+    let blender = last_json_line(&run_python_client("particles_blender.py", &args));
+    for name in ["boom", "jet", "puff", "ring"] {
+        let counts: Vec<f64> = blender["counts"][name]
+            .as_array()
+            .unwrap_or_else(|| panic!("Blender has no point cloud {name}: {blender}"))
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect();
+        assert_eq!(counts, column(&usd, &format!("/root/particles/{name}"), 0));
+        for low in blender["lowest"][name].as_array().unwrap() {
+            if let Some(z) = low.as_f64() {
+                assert!(z > -1e-4, "{name} went through the floor: {blender}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_gltf_bake_writes_its_particles_beside_it_and_the_same_scene_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(
+        corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    baked(d, "fx.glb");
+    let first = std::fs::read(d.join("fx.particles.usda")).unwrap();
+    baked(d, "fx.glb");
+    assert_eq!(first, std::fs::read(d.join("fx.particles.usda")).unwrap());
+    assert!(String::from_utf8_lossy(&first).contains("def Points \"boom\""));
+
+    let out = bake(d, "wrong.usda", "nobody");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("emitter[3].follow") && err.contains("nobody"),
+        "{err}"
+    );
+    assert!(!d.join("wrong.usda").exists());
+}
