@@ -19,6 +19,10 @@ if ! .venv/bin/python -c 'import pxr.Usd' 2>/dev/null; then
   echo "setup: installing usd-core into .venv"
   .venv/bin/pip install --quiet --disable-pip-version-check usd-core
 fi
+if ! .venv/bin/python -c 'import numpy' 2>/dev/null; then
+  echo "setup: installing numpy into .venv (Python plug-ins)"
+  .venv/bin/pip install --quiet --disable-pip-version-check numpy
+fi
 if ! .venv/bin/python -c 'import alembic3d' 2>/dev/null; then
   echo "setup: installing alembic3d (PyAlembic) into .venv (Alembic export)"
   .venv/bin/pip install --quiet --disable-pip-version-check "alembic3d==1.8.12.1"

@@ -4,6 +4,7 @@
 //! else. Errors are one readable message, never a panic.
 
 mod demo;
+mod plugins;
 mod view;
 mod wedge;
 
@@ -74,6 +75,10 @@ enum Command {
         /// read), `quiet`, or `auto` (the bar on a terminal, else a line every quarter).
         #[arg(long, value_enum, default_value_t = Progress::Auto)]
         progress: Progress,
+        /// Do not load Python plug-ins (from plugins/ beside the scene,
+        /// $SPRINGBAKE_PLUGIN_PATH, ~/.config/springbake/plugins).
+        #[arg(long)]
+        no_plugins: bool,
     },
     /// Bake every combination of varied settings ("wedging"), with an index and a contact sheet.
     ///
@@ -102,8 +107,17 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// List the registered importers and exporters.
-    Plugins,
+    /// List the built-in importers and exporters and the Python plug-ins found for a scene:
+    /// in plugins/ beside it, in each folder of $SPRINGBAKE_PLUGIN_PATH and in
+    /// ~/.config/springbake/plugins, each with the file it came from (one that fails to load is
+    /// listed with its error). See docs/plugins.md.
+    Plugins {
+        /// A scene file or folder whose plugins/ to include (default: the current folder).
+        scene: Option<PathBuf>,
+        /// Skip the Python plug-ins.
+        #[arg(long)]
+        no_plugins: bool,
+    },
     /// Bake, then re-bake whenever the scene file or any source it names changes.
     Watch {
         /// A scene file (.toml) or a mesh.
@@ -192,6 +206,7 @@ fn run(command: Command) -> Result<(), Failure> {
             report,
             max_memory,
             progress,
+            no_plugins,
         } => {
             let overrides = MeshOverrides {
                 output,
@@ -201,7 +216,15 @@ fn run(command: Command) -> Result<(), Failure> {
                 material,
             };
             let loaded = load_input(&input, &overrides)?;
-            run_bake(&loaded, report.as_deref(), max_memory, progress)
+            let (registry, found) =
+                springbake_pipeline::registry_with_plugins(Some(&loaded.read_root()), !no_plugins);
+            for (file, why) in &found.failed {
+                eprintln!(
+                    "springbake: note: plug-in {} not loaded: {why}",
+                    file.display()
+                );
+            }
+            run_bake(&loaded, &registry, report.as_deref(), max_memory, progress)
         }
         Command::Demo { output, report } => {
             let dir = tempfile::tempdir().map_err(|e| Failure {
@@ -212,7 +235,13 @@ fn run(command: Command) -> Result<(), Failure> {
                 code: 1,
                 message: e,
             })?;
-            run_bake(&loaded, report.as_deref(), None, Progress::Auto)?;
+            run_bake(
+                &loaded,
+                &default_registry(),
+                report.as_deref(),
+                None,
+                Progress::Auto,
+            )?;
             // A look at it without opening anything: a flipbook beside the bake.
             let gif = output.with_extension("gif");
             let started = std::time::Instant::now();
@@ -239,16 +268,8 @@ fn run(command: Command) -> Result<(), Failure> {
         }
         Command::Wedge(args) => wedge::run(args),
         Command::Inspect { file, cells, json } => inspect(&file, cells, json),
-        Command::Plugins => {
-            let registry = default_registry();
-            println!("importers:");
-            for i in registry.importers() {
-                println!("  {:<8} {}", i.name(), i.extensions().join(", "));
-            }
-            println!("exporters:");
-            for e in registry.exporters() {
-                println!("  {:<8} {}", e.name(), e.extensions().join(", "));
-            }
+        Command::Plugins { scene, no_plugins } => {
+            plugins::list(scene.as_deref(), !no_plugins);
             Ok(())
         }
         Command::Watch {
@@ -397,6 +418,7 @@ enum Progress {
 
 fn run_bake(
     loaded: &LoadedScene,
+    registry: &springbake_core::plugin::Registry,
     report: Option<&Path>,
     max_memory: Option<u64>,
     mode: Progress,
@@ -404,7 +426,6 @@ fn run_bake(
     if let Some(path) = report {
         check_report_path(loaded, path)?;
     }
-    let registry = default_registry();
     let total = loaded.scene.output.frames;
     let terminal = std::io::stderr().is_terminal();
     let show_bar = matches!(mode, Progress::Bar) || (mode == Progress::Auto && terminal);
@@ -446,7 +467,7 @@ fn run_bake(
         progress: Some(&mut progress),
         note: Some(&mut note),
     };
-    let outcome = bake(&registry, loaded, &mut hooks);
+    let outcome = bake(registry, loaded, &mut hooks);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }

@@ -49,6 +49,59 @@ pub fn default_registry() -> Registry {
     registry
 }
 
+/// A plug-in found at run time, for `springbake plugins`.
+#[derive(Debug, Clone)]
+pub struct FoundPlugin {
+    pub kind: &'static str,
+    pub name: String,
+    pub extensions: Vec<String>,
+    pub file: PathBuf,
+}
+
+/// Plug-ins found at run time: those that loaded, and the files that failed with why.
+#[derive(Debug, Clone, Default)]
+pub struct FoundPlugins {
+    pub loaded: Vec<FoundPlugin>,
+    pub failed: Vec<(PathBuf, String)>,
+}
+
+/// [`default_registry`] plus the Python plug-ins discovered for a scene in `scene_dir`
+/// (`plugins/` beside it, `$SPRINGBAKE_PLUGIN_PATH`, the user's config folder), unless
+/// `enabled` is false (`--no-plugins`). A built-in format keeps its extensions.
+pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Registry, FoundPlugins) {
+    use springbake_core::plugin::{Exporter, Importer};
+    let mut registry = default_registry();
+    let mut found = FoundPlugins::default();
+    if !enabled {
+        return (registry, found);
+    }
+    let folders = springbake_usd::python_plugins::plugin_folders(scene_dir);
+    if folders.is_empty() {
+        return (registry, found);
+    }
+    let discovered = springbake_usd::python_plugins::discover(&folders);
+    for i in discovered.importers {
+        found.loaded.push(FoundPlugin {
+            kind: "importer",
+            name: i.name().to_owned(),
+            extensions: i.extensions().iter().map(|e| e.to_string()).collect(),
+            file: i.file().to_path_buf(),
+        });
+        registry.register_importer(i);
+    }
+    for e in discovered.exporters {
+        found.loaded.push(FoundPlugin {
+            kind: "exporter",
+            name: e.name().to_owned(),
+            extensions: e.extensions().iter().map(|x| x.to_string()).collect(),
+            file: e.file().to_path_buf(),
+        });
+        registry.register_exporter(e);
+    }
+    found.failed = discovered.failed;
+    (registry, found)
+}
+
 /// Why a bake failed. `is_user_error` tells the CLI to exit with code 2.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {

@@ -2,7 +2,9 @@
 //! (PyAlembic), both embedded with pyo3.
 //!
 //! [`UsdPlugin`] registers [`UsdImporter`] (`.usda`, `.usdc`, `.usdz`, `.usd`),
-//! [`UsdExporter`] (`.usda`, `.usdc`, `.usd`) and [`AlembicExporter`] (`.abc`). The Python side is one file, `usd_bridge.py`,
+//! [`UsdExporter`] (`.usda`, `.usdc`, `.usd`) and [`AlembicExporter`] (`.abc`).
+//! [`python_plugins`] hosts the user's Python importer and exporter plug-ins in the same
+//! interpreter. The Python side is one file, `usd_bridge.py`,
 //! compiled into the binary; [`python`] finds the virtual environment with usd-core and loads
 //! it; [`mesh`] holds the Rust-side geometry (triangulation, primvar expansion, normals).
 //! Bulk data crosses into and out of Python as flat byte arrays.
@@ -13,6 +15,7 @@ pub mod import;
 pub mod mesh;
 pub mod particles;
 pub mod python;
+pub mod python_plugins;
 
 pub use alembic::AlembicExporter;
 pub use export::UsdExporter;

@@ -1,0 +1,205 @@
+//! Python plug-ins found at run time (issue 22, items 1–4 and 6 in part): the example PLY
+//! importer reads a PLY written by Blender and the example JSON exporter writes the bake,
+//! both from `plugins/` beside the input, without rebuilding springbake; `springbake plugins`
+//! lists them with their files and a broken plug-in with its error while bakes still run; an
+//! exception inside a plug-in is a one-line error naming its file and line (exit 2);
+//! `--no-plugins` turns discovery off.
+#![allow(clippy::unwrap_used)]
+
+use springbake_testkit::{last_json_line, workspace_root};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn springbake(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("SPRINGBAKE_PLUGIN_PATH")
+        .env("XDG_CONFIG_HOME", dir.join("no-config"))
+        .output()
+        .unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// A folder with Blender's PLY of a UV sphere (r 0.3 m, centre 0.8 m up) and the examples.
+fn setup() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("plugins")).unwrap();
+    for name in ["ply_importer.py", "json_cache_exporter.py"] {
+        std::fs::copy(
+            workspace_root().join("examples/plugins").join(name),
+            d.join("plugins").join(name),
+        )
+        .unwrap();
+    }
+    let script = d.join("make_ply.py");
+    std::fs::write(
+        &script,
+        format!(
+            "import bpy\nbpy.ops.wm.read_factory_settings(use_empty=True)\n\
+             bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(0, 0, 0.8), segments=16, ring_count=8)\n\
+             bpy.ops.wm.ply_export(filepath={:?}, ascii_format=False)\n",
+            d.join("ball.ply").to_string_lossy()
+        ),
+    )
+    .unwrap();
+    run_python_client_path(&script);
+    dir
+}
+
+fn run_python_client_path(script: &Path) -> String {
+    let out = Command::new(springbake_testkit::venv_python())
+        .arg(script)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn blenders_ply_bakes_through_the_importer_plugin_and_the_json_exporter_writes_it() {
+    let dir = setup();
+    let d = dir.path();
+    ok(&springbake(
+        d,
+        &[
+            "bake",
+            "ball.ply",
+            "-o",
+            "ball.json",
+            "--frames",
+            "24",
+            "--progress",
+            "quiet",
+        ],
+    ));
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("ball.json")).unwrap()).unwrap();
+    assert_eq!(doc["frame_count"], 24);
+    assert_eq!(doc["up_axis"], "Z", "Blender's PLY is Z-up");
+    let frames = doc["meshes"][0]["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 24);
+    let lowest = |f: &serde_json::Value| {
+        f.as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p[2].as_f64().unwrap())
+            .fold(f64::INFINITY, f64::min)
+    };
+    assert!((lowest(&frames[0]) - 0.5).abs() < 1e-4, "starts 0.5 m up");
+    let landed = frames.iter().map(lowest).fold(f64::INFINITY, f64::min);
+    assert!(landed.abs() < 0.01, "falls onto the floor: {landed}");
+
+    // The same PLY baked to glTF, opened in Blender: the sphere where Blender made it.
+    ok(&springbake(
+        d,
+        &[
+            "bake",
+            "ball.ply",
+            "-o",
+            "ball.glb",
+            "--frames",
+            "12",
+            "--progress",
+            "quiet",
+        ],
+    ));
+    let script = d.join("open_glb.py");
+    std::fs::write(
+        &script,
+        format!(
+            "import bpy, json\nbpy.ops.wm.read_factory_settings(use_empty=True)\n\
+             bpy.ops.import_scene.gltf(filepath={:?})\n\
+             o = [o for o in bpy.context.scene.objects if o.type == 'MESH'][0]\n\
+             bpy.context.scene.frame_set(0)\n\
+             e = o.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()\n\
+             zs = [(o.matrix_world @ v.co).z for v in e.vertices]\n\
+             print(json.dumps({{'name': o.name, 'low': min(zs), 'high': max(zs)}}))\n",
+            d.join("ball.glb").to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let seen = last_json_line(&run_python_client_path(&script));
+    assert_eq!(seen["name"], "ball", "{seen}");
+    assert!((seen["low"].as_f64().unwrap() - 0.5).abs() < 1e-3, "{seen}");
+    assert!(
+        (seen["high"].as_f64().unwrap() - 1.1).abs() < 1e-3,
+        "{seen}"
+    );
+}
+
+#[test]
+fn plugins_are_listed_with_their_files_and_a_broken_one_with_its_error() {
+    let dir = setup();
+    let d = dir.path();
+    std::fs::write(
+        d.join("plugins/broken.py"),
+        "SPRINGBAKE_PLUGIN = {\n  'kind': \n",
+    )
+    .unwrap();
+    let listing = ok(&springbake(d, &["plugins", "."]));
+    assert!(
+        listing.contains("ply") && listing.contains("ply_importer.py"),
+        "{listing}"
+    );
+    assert!(listing.contains("jsoncache") && listing.contains("json_cache_exporter.py"));
+    assert!(
+        listing.contains("not loaded") && listing.contains("broken.py") && listing.contains("line"),
+        "{listing}"
+    );
+    // A bake that does not use the broken plug-in runs.
+    ok(&springbake(
+        d,
+        &[
+            "bake",
+            "ball.ply",
+            "-o",
+            "ball.glb",
+            "--frames",
+            "6",
+            "--progress",
+            "quiet",
+        ],
+    ));
+    let off = springbake(d, &["bake", "ball.ply", "--no-plugins", "--frames", "6"]);
+    assert_eq!(
+        off.status.code(),
+        Some(2),
+        "no importer for .ply without plug-ins"
+    );
+}
+
+#[test]
+fn an_exception_in_a_plugin_names_its_file_and_line_and_keeps_the_old_output() {
+    let dir = setup();
+    let d = dir.path();
+    std::fs::write(
+        d.join("plugins/ply_importer.py"),
+        "SPRINGBAKE_PLUGIN = {'kind': 'importer', 'name': 'ply', 'extensions': ['ply']}\n\n\
+         def import_file(path):\n    raise ValueError('cannot read ' + path)\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("ball.json"), "old").unwrap();
+    let out = springbake(d, &["bake", "ball.ply", "-o", "ball.json", "--frames", "6"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("ply_importer.py") && err.contains("line 4") && err.contains("ValueError"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert_eq!(std::fs::read_to_string(d.join("ball.json")).unwrap(), "old");
+}

@@ -1,0 +1,135 @@
+"""springbake's host for Python plug-ins (docs/plugins.md). Rust calls load_plugin(path) once
+per discovered file, then call_import / call_export; bulk data crosses as flat little-endian
+byte arrays. Any exception a plug-in raises becomes a BridgeError naming the plug-in's file
+and line."""
+
+import os
+import traceback
+
+import numpy as np
+
+
+class BridgeError(Exception):
+    def __init__(self, message, location=None):
+        super().__init__(message)
+        self.message = message
+        self.location = location
+
+
+KINDS = ("importer", "exporter")
+
+
+def _where(error, path):
+    """`line N` of the deepest frame of the traceback inside the plug-in's file."""
+    line = None
+    for frame in traceback.extract_tb(error.__traceback__):
+        if os.path.abspath(frame.filename) == os.path.abspath(path):
+            line = frame.lineno
+    if line is None and isinstance(error, SyntaxError):
+        line = error.lineno
+    return "line %s" % (line if line is not None else "?")
+
+
+def _raised(error, path, doing):
+    return BridgeError(
+        "the plug-in raised %s while %s: %s" % (type(error).__name__, doing, error),
+        _where(error, path),
+    )
+
+
+def load_plugin(path):
+    """Runs the file as a module; returns (module, kind, name, extensions)."""
+    with open(path, "r", encoding="utf-8") as f:
+        source = f.read()
+    namespace = {"__file__": path, "__name__": "springbake_plugin_" + os.path.basename(path)[:-3]}
+    try:
+        exec(compile(source, path, "exec"), namespace)
+    except BaseException as e:  # a plug-in must never take the host down
+        raise _raised(e, path, "loading")
+    info = namespace.get("SPRINGBAKE_PLUGIN")
+    if not isinstance(info, dict):
+        raise BridgeError("defines no SPRINGBAKE_PLUGIN dict (kind, name, extensions)", path)
+    kind, name, extensions = info.get("kind"), info.get("name"), info.get("extensions")
+    if kind not in KINDS:
+        raise BridgeError("SPRINGBAKE_PLUGIN['kind'] must be one of %s, got %r" % (KINDS, kind), path)
+    if not isinstance(name, str) or not name:
+        raise BridgeError("SPRINGBAKE_PLUGIN['name'] must be a non-empty string", path)
+    if not isinstance(extensions, (list, tuple)) or not extensions or not all(
+        isinstance(e, str) and e and "." not in e for e in extensions
+    ):
+        raise BridgeError("SPRINGBAKE_PLUGIN['extensions'] must be a list like ['ply']", path)
+    entry = {"importer": "import_file", "exporter": "export"}[kind]
+    if not callable(namespace.get(entry)):
+        raise BridgeError("a %s plug-in must define %s()" % (kind, entry), path)
+    return namespace, kind, name, [e.lower() for e in extensions]
+
+
+def _array(value, what, width, dtype, location):
+    try:
+        a = np.asarray(value, dtype=dtype)
+    except Exception as e:
+        raise BridgeError("%s is not numeric (%s)" % (what, e), location)
+    if a.ndim != 2 or a.shape[1] != width:
+        raise BridgeError("%s must have shape (n, %d), got %s" % (what, width, a.shape), location)
+    if dtype == np.float64 and not np.isfinite(a).all():
+        raise BridgeError("%s has non-finite values" % what, location)
+    return np.ascontiguousarray(a.astype("<f8" if dtype == np.float64 else "<i4"))
+
+
+def call_import(namespace, plugin_path, path):
+    """The plug-in's meshes as dicts of byte arrays (positions f64×3, faces i32×3, optional
+    uvs f64×2, normals f64×3, matrix f64×16 row-major)."""
+    try:
+        meshes = namespace["import_file"](path)
+    except BaseException as e:
+        raise _raised(e, plugin_path, "importing " + path)
+    if not isinstance(meshes, (list, tuple)) or not meshes:
+        raise BridgeError("import_file() must return a non-empty list of meshes", plugin_path)
+    out = []
+    for k, m in enumerate(meshes):
+        where = "import_file()[%d]" % k
+        if not isinstance(m, dict):
+            raise BridgeError("each mesh must be a dict, got %s" % type(m).__name__, where)
+        positions = _array(m.get("positions"), "positions", 3, np.float64, where)
+        faces = _array(m.get("faces"), "faces", 3, np.int32, where)
+        if faces.size and (faces.min() < 0 or faces.max() >= len(positions)):
+            raise BridgeError("faces index outside positions (%d points)" % len(positions), where)
+        item = {
+            "name": str(m.get("name") or "mesh_%d" % k),
+            "positions": positions.tobytes(),
+            "faces": faces.tobytes(),
+        }
+        for key, width in (("uvs", 2), ("normals", 3)):
+            if m.get(key) is not None:
+                a = _array(m[key], key, width, np.float64, where)
+                if len(a) != len(positions):
+                    raise BridgeError("%s must have one row per position" % key, where)
+                item[key] = a.tobytes()
+        if m.get("matrix") is not None:
+            mat = np.asarray(m["matrix"], dtype="<f8")
+            if mat.shape != (4, 4):
+                raise BridgeError("matrix must be 4×4, got %s" % (mat.shape,), where)
+            item["matrix"] = np.ascontiguousarray(mat).tobytes()
+        out.append(item)
+    return out
+
+
+def call_export(namespace, plugin_path, spec, out_path):
+    """Gives the plug-in the bake (numpy arrays) and the path to write."""
+    meshes = []
+    for m in spec["meshes"]:
+        frames = np.frombuffer(m["frames"], dtype="<f4").reshape(spec["frame_count"], -1, 3)
+        meshes.append({
+            "name": m["name"],
+            "frames": frames,
+            "triangles": np.frombuffer(m["triangles"], dtype="<i4").reshape(-1, 3),
+            "matrix": np.frombuffer(m["matrix"], dtype="<f8").reshape(4, 4),
+        })
+    baked = {"fps": spec["fps"], "frame_count": spec["frame_count"], "meshes": meshes,
+             "up_axis": spec["up_axis"], "meters_per_unit": spec["meters_per_unit"]}
+    try:
+        namespace["export"](baked, out_path)
+    except BaseException as e:
+        raise _raised(e, plugin_path, "exporting")
+    if not os.path.isfile(out_path):
+        raise BridgeError("export() wrote nothing to the path it was given", plugin_path)

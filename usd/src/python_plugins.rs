@@ -1,0 +1,386 @@
+//! Python plug-ins found at run time (issue 22): importers and exporters written as one `.py`
+//! file each, loaded into the embedded interpreter without rebuilding springbake
+//! (docs/plugins.md has the API).
+//!
+//! Discovery ([`plugin_folders`]), in order: `plugins/` beside the scene file, each folder of
+//! `$SPRINGBAKE_PLUGIN_PATH`, then the user's `$XDG_CONFIG_HOME/springbake/plugins`
+//! (`~/.config/springbake/plugins`). A file that fails to load is kept in
+//! [`Discovered::failed`] with its error (file and line); the others still register, so bakes
+//! that do not use the broken one run. Exceptions inside a plug-in become [`PluginError`]s
+//! naming the plug-in's file and line (exit code 2), never a crash; wrong return shapes are
+//! caught and named by `plugin_bridge.py`. The host still writes every output atomically: an
+//! exporter plug-in writes to a temporary path it is given.
+
+use crate::python::{plugin_error, with_bridge_of, Bridge};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList};
+use springbake_core::bake::BakedScene;
+use springbake_core::display::{DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis};
+use springbake_core::nalgebra::Matrix4;
+use springbake_core::plugin::{
+    ExportSettings, Exporter, ImportSettings, Importer, IoErrorKind, OutputFile, PluginError,
+};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+/// Environment variable with extra plug-in folders (`:`-separated).
+pub const PLUGIN_PATH_ENV: &str = "SPRINGBAKE_PLUGIN_PATH";
+
+static PLUGIN_BRIDGE: Bridge = Bridge {
+    source: include_str!("plugin_bridge.py"),
+    file_name: c"plugin_bridge.py",
+    module_name: c"springbake_plugin_bridge",
+    requires: "numpy",
+    package: "numpy",
+    package_role: "Python's numpy (what plug-ins exchange arrays in)",
+    loaded: OnceLock::new(),
+};
+
+/// The folders plug-ins are looked for in, in order (module docs); those that do not exist
+/// are left out.
+pub fn plugin_folders(scene_dir: Option<&Path>) -> Vec<PathBuf> {
+    let mut folders: Vec<PathBuf> = scene_dir.map(|d| d.join("plugins")).into_iter().collect();
+    if let Some(paths) = std::env::var_os(PLUGIN_PATH_ENV) {
+        folders.extend(std::env::split_paths(&paths).filter(|p| !p.as_os_str().is_empty()));
+    }
+    let config = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")));
+    folders.extend(config.map(|c| c.join("springbake").join("plugins")));
+    let mut seen = Vec::new();
+    folders.retain(|f| {
+        f.is_dir() && !seen.contains(f) && {
+            seen.push(f.clone());
+            true
+        }
+    });
+    folders
+}
+
+/// One loaded plug-in file.
+#[derive(Debug)]
+struct Loaded {
+    /// The module's globals, where its functions live.
+    namespace: Py<PyAny>,
+    file: PathBuf,
+    up_axis: UpAxis,
+    meters_per_unit: f64,
+}
+
+/// What discovery found.
+#[derive(Debug, Default)]
+pub struct Discovered {
+    pub importers: Vec<PythonImporter>,
+    pub exporters: Vec<PythonExporter>,
+    /// Files that failed to load, with why.
+    pub failed: Vec<(PathBuf, String)>,
+}
+
+/// Loads every `*.py` file of `folders` (sorted by name within a folder).
+pub fn discover(folders: &[PathBuf]) -> Discovered {
+    let mut found = Discovered::default();
+    for folder in folders {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|e| e == "py") && p.is_file())
+            .collect();
+        files.sort();
+        for file in files {
+            match load(&file) {
+                Ok((loaded, kind, name, extensions)) => {
+                    let extensions = extensions.into_iter().map(|e| &*String::leak(e)).collect();
+                    let loaded = Arc::new(loaded);
+                    if kind == "importer" {
+                        found.importers.push(PythonImporter {
+                            name,
+                            extensions,
+                            loaded,
+                        });
+                    } else {
+                        found.exporters.push(PythonExporter {
+                            name,
+                            extensions,
+                            loaded,
+                        });
+                    }
+                }
+                Err(e) => found.failed.push((file, e.to_string())),
+            }
+        }
+    }
+    found
+}
+
+type Manifest = (Loaded, String, String, Vec<String>);
+
+fn load(file: &Path) -> Result<Manifest, PluginError> {
+    with_bridge_of(&PLUGIN_BRIDGE, file, |py, bridge| {
+        let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, file);
+        let (namespace, kind, name, extensions): (Bound<PyAny>, String, String, Vec<String>) =
+            bridge
+                .call_method1("load_plugin", (file.to_string_lossy().into_owned(),))
+                .and_then(|r| r.extract())
+                .map_err(to_err)?;
+        let info = namespace.get_item("SPRINGBAKE_PLUGIN").map_err(to_err)?;
+        let up_axis = match info
+            .get_item("up_axis")
+            .ok()
+            .and_then(|v| v.extract::<String>().ok())
+            .as_deref()
+        {
+            Some("Z") | Some("z") => UpAxis::Z,
+            _ => UpAxis::Y,
+        };
+        let meters_per_unit = info
+            .get_item("meters_per_unit")
+            .ok()
+            .and_then(|v| v.extract::<f64>().ok())
+            .filter(|m| m.is_finite() && *m > 0.0)
+            .unwrap_or(1.0);
+        Ok((
+            Loaded {
+                namespace: namespace.unbind(),
+                file: file.to_path_buf(),
+                up_axis,
+                meters_per_unit,
+            },
+            kind,
+            name,
+            extensions,
+        ))
+    })
+}
+
+fn floats(bytes: &[u8]) -> Vec<f64> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
+        .collect()
+}
+
+/// An importer plug-in.
+#[derive(Debug)]
+pub struct PythonImporter {
+    name: String,
+    extensions: Vec<&'static str>,
+    loaded: Arc<Loaded>,
+}
+
+impl PythonImporter {
+    /// The plug-in's file.
+    pub fn file(&self) -> &Path {
+        &self.loaded.file
+    }
+}
+
+impl Importer for PythonImporter {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &self.extensions
+    }
+
+    fn import(
+        &self,
+        path: &Path,
+        _bytes: &[u8],
+        _settings: &ImportSettings,
+    ) -> Result<ImportedScene, PluginError> {
+        let plugin = &self.loaded;
+        let meshes = with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
+            let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
+            let list = bridge
+                .call_method1(
+                    "call_import",
+                    (
+                        plugin.namespace.bind(py),
+                        plugin.file.to_string_lossy().into_owned(),
+                        path.to_string_lossy().into_owned(),
+                    ),
+                )
+                .map_err(to_err)?;
+            let list = list.cast::<PyList>().map_err(|e| to_err(e.into()))?;
+            let mut meshes = Vec::new();
+            for (k, item) in list.iter().enumerate() {
+                let get = |key: &str| -> Option<Vec<u8>> {
+                    item.get_item(key)
+                        .ok()
+                        .and_then(|v| v.cast::<PyBytes>().ok().map(|b| b.as_bytes().to_vec()))
+                };
+                let name: String = item
+                    .get_item("name")
+                    .and_then(|v| v.extract())
+                    .map_err(to_err)?;
+                let positions = floats(&get("positions").unwrap_or_default());
+                let faces: Vec<u32> = get("faces")
+                    .unwrap_or_default()
+                    .chunks_exact(4)
+                    .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u32)
+                    .collect();
+                let to_f32 = |v: Vec<f64>, w: usize| -> Vec<Vec<f32>> {
+                    v.chunks_exact(w)
+                        .map(|c| c.iter().map(|x| *x as f32).collect())
+                        .collect()
+                };
+                let primitive = Primitive {
+                    positions: to_f32(positions, 3)
+                        .into_iter()
+                        .map(|p| [p[0], p[1], p[2]])
+                        .collect(),
+                    normals: get("normals").map(|b| {
+                        to_f32(floats(&b), 3)
+                            .into_iter()
+                            .map(|n| [n[0], n[1], n[2]])
+                            .collect()
+                    }),
+                    uvs: get("uvs").map(|b| {
+                        to_f32(floats(&b), 2)
+                            .into_iter()
+                            .map(|t| [t[0], t[1]])
+                            .collect()
+                    }),
+                    indices: faces,
+                    material: None,
+                };
+                let world_from_local = get("matrix")
+                    .map(|b| Matrix4::from_row_slice(&floats(&b)))
+                    .unwrap_or_else(Matrix4::identity);
+                let count = primitive.positions.len();
+                meshes.push(DisplayMesh {
+                    name,
+                    source_key: format!("plugin:{k}"),
+                    world_from_local,
+                    primitives: vec![primitive],
+                    source_point_of_vertex: Vec::new(),
+                    source_point_count: count,
+                });
+            }
+            Ok(meshes)
+        })?;
+        Ok(ImportedScene {
+            meshes,
+            up_axis: plugin.up_axis,
+            meters_per_unit: plugin.meters_per_unit,
+            source: SourceDocument {
+                path: path.to_path_buf(),
+                importer: self.name.clone(),
+                read_root: None,
+            },
+            materials: Vec::new(),
+            notes: Vec::new(),
+        })
+    }
+}
+
+/// An exporter plug-in.
+#[derive(Debug)]
+pub struct PythonExporter {
+    name: String,
+    extensions: Vec<&'static str>,
+    loaded: Arc<Loaded>,
+}
+
+impl PythonExporter {
+    /// The plug-in's file.
+    pub fn file(&self) -> &Path {
+        &self.loaded.file
+    }
+}
+
+impl Exporter for PythonExporter {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &self.extensions
+    }
+
+    fn export(
+        &self,
+        scene: &ImportedScene,
+        baked: &BakedScene,
+        settings: &ExportSettings,
+    ) -> Result<Vec<OutputFile>, PluginError> {
+        let out = settings.path.as_path();
+        let plugin = &self.loaded;
+        let dir = tempfile::tempdir()
+            .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
+        let temp = dir.path().join(out.file_name().unwrap_or_default());
+        with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
+            let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
+            let spec = PyDict::new(py);
+            let meshes = PyList::empty(py);
+            for bm in &baked.meshes {
+                let Some(mesh) = scene.meshes.get(bm.mesh_index) else {
+                    continue;
+                };
+                let d = PyDict::new(py);
+                let frames: Vec<u8> = bm
+                    .frames
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .flat_map(|c| c.to_le_bytes())
+                    .collect();
+                let triangles: Vec<u8> = mesh
+                    .triangles()
+                    .iter()
+                    .flatten()
+                    .flat_map(|&i| (i as i32).to_le_bytes())
+                    .collect();
+                let matrix: Vec<u8> = mesh
+                    .world_from_local
+                    .transpose()
+                    .as_slice()
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect();
+                d.set_item("name", &mesh.name).map_err(to_err)?;
+                d.set_item("frames", PyBytes::new(py, &frames))
+                    .map_err(to_err)?;
+                d.set_item("triangles", PyBytes::new(py, &triangles))
+                    .map_err(to_err)?;
+                d.set_item("matrix", PyBytes::new(py, &matrix))
+                    .map_err(to_err)?;
+                meshes.append(d).map_err(to_err)?;
+            }
+            spec.set_item("meshes", meshes).map_err(to_err)?;
+            spec.set_item("fps", baked.fps).map_err(to_err)?;
+            spec.set_item("frame_count", baked.frame_count)
+                .map_err(to_err)?;
+            let up = if scene.up_axis == UpAxis::Z { "Z" } else { "Y" };
+            spec.set_item("up_axis", up).map_err(to_err)?;
+            spec.set_item("meters_per_unit", scene.meters_per_unit)
+                .map_err(to_err)?;
+            bridge
+                .call_method1(
+                    "call_export",
+                    (
+                        plugin.namespace.bind(py),
+                        plugin.file.to_string_lossy().into_owned(),
+                        spec,
+                        temp.to_string_lossy().into_owned(),
+                    ),
+                )
+                .map_err(to_err)?;
+            Ok(())
+        })?;
+        let bytes = std::fs::read(&temp).map_err(|e| {
+            PluginError::new(
+                IoErrorKind::Io,
+                &plugin.file,
+                format!("reading its output: {e}"),
+            )
+        })?;
+        Ok(vec![OutputFile {
+            path: out.to_path_buf(),
+            bytes,
+        }])
+    }
+}
