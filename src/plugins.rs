@@ -40,6 +40,22 @@ pub fn list(scene: Option<&Path>, with_plugins: bool) {
             origin("exporter", e.name())
         );
     }
+    if !registry.force_fields().is_empty() {
+        println!("force fields:");
+        for f in registry.force_fields() {
+            let every = if f.per_substep() {
+                "every substep"
+            } else {
+                "every frame"
+            };
+            println!(
+                "  {:<8} {:<24}{}",
+                f.name(),
+                every,
+                origin("force_field", f.name())
+            );
+        }
+    }
     if !found.failed.is_empty() {
         println!("not loaded:");
         for (file, why) in &found.failed {

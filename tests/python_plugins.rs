@@ -203,3 +203,67 @@ fn an_exception_in_a_plugin_names_its_file_and_line_and_keeps_the_old_output() {
     assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
     assert_eq!(std::fs::read_to_string(d.join("ball.json")).unwrap(), "old");
 }
+
+/// The vortex example (a force field called every substep) makes a floating ball orbit the
+/// axis; a field that raises stops the bake with its file and line.
+#[test]
+fn the_vortex_field_plugin_makes_a_body_orbit() {
+    let dir = setup();
+    let d = dir.path();
+    std::fs::copy(
+        workspace_root().join("examples/plugins/vortex_field.py"),
+        d.join("plugins/vortex_field.py"),
+    )
+    .unwrap();
+    std::fs::copy(
+        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    let scene = "[output]\npath = \"orbit.json\"\nframes = 49\n\n[world]\ngravity = 0.0\n\n\
+                 [[body]]\nname = \"ball\"\nsource = \"icosphere.glb\"\ncells = 5\n\
+                 offset = [1.0, -1.0, 0.0]\n\n[[force_field]]\nfield = \"vortex\"\n";
+    std::fs::write(d.join("orbit.toml"), scene).unwrap();
+    assert!(ok(&springbake(d, &["plugins", "."])).contains("every substep"));
+    ok(&springbake(
+        d,
+        &["bake", "orbit.toml", "--progress", "quiet"],
+    ));
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("orbit.json")).unwrap()).unwrap();
+    let centre = |f: usize| {
+        let frame = doc["meshes"][0]["frames"][f].as_array().unwrap();
+        let n = frame.len() as f64;
+        let sum = |k: usize| frame.iter().map(|p| p[k].as_f64().unwrap()).sum::<f64>() / n;
+        (sum(0), sum(2))
+    };
+    let mut swept = 0.0;
+    let mut last = 0.0f64;
+    for f in 1..49 {
+        let (x, z) = centre(f);
+        let angle = (-z).atan2(x);
+        let mut step = angle - last;
+        if step < -std::f64::consts::PI {
+            step += std::f64::consts::TAU;
+        }
+        swept += step;
+        last = angle;
+        let r = x.hypot(z);
+        assert!((0.7..1.05).contains(&r), "frame {f}: radius {r}");
+    }
+    assert!(swept.to_degrees() > 150.0, "swept {}°", swept.to_degrees());
+
+    std::fs::write(
+        d.join("plugins/vortex_field.py"),
+        "SPRINGBAKE_PLUGIN = {'kind': 'force_field', 'name': 'vortex'}\n\n\
+         def force(x, v, t):\n    return x[:, :2]\n",
+    )
+    .unwrap();
+    let out = springbake(d, &["bake", "orbit.toml", "--progress", "quiet"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("vortex_field.py") && err.contains("shape"),
+        "{err}"
+    );
+}

@@ -164,6 +164,7 @@ pub struct Registry {
     importers: Vec<Arc<dyn Importer>>,
     exporters: Vec<Arc<dyn Exporter>>,
     procedures: Vec<Arc<dyn ProcedurePlugin>>,
+    force_fields: Vec<Arc<dyn crate::solver::fields::ForceField>>,
 }
 
 fn extension_of(path: &Path) -> Option<String> {
@@ -197,6 +198,25 @@ impl Registry {
         self.procedures.retain(|p| p.name() != procedure.name());
         self.procedures.push(Arc::new(procedure));
         self
+    }
+
+    /// Register a force field; a later one with the same name replaces it.
+    pub fn register_force_field(
+        &mut self,
+        field: impl crate::solver::fields::ForceField + 'static,
+    ) -> &mut Self {
+        self.force_fields.retain(|f| f.name() != field.name());
+        self.force_fields.push(Arc::new(field));
+        self
+    }
+
+    /// The force field registered under `name`.
+    pub fn force_field(&self, name: &str) -> Option<&Arc<dyn crate::solver::fields::ForceField>> {
+        self.force_fields.iter().find(|f| f.name() == name)
+    }
+
+    pub fn force_fields(&self) -> &[Arc<dyn crate::solver::fields::ForceField>] {
+        &self.force_fields
     }
 
     /// The event procedure registered under `name`.

@@ -43,12 +43,26 @@ pub struct SceneFile {
     /// Secondary action: child bodies anchored to a parent through three nodes (eq 4.1).
     #[serde(default)]
     pub attach: Vec<AttachSection>,
+    /// Force fields from plug-ins acting on bodies (see `crate::solver::fields`).
+    #[serde(default)]
+    pub force_field: Vec<ForceFieldSection>,
     /// Particle sources (Terasawa §2.3; see `crate::particles`).
     #[serde(default)]
     pub emitter: Vec<crate::particles::EmitterSection>,
     /// Variations of this scene that `springbake wedge` bakes (a bake ignores it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wedge: Option<WedgeSection>,
+}
+
+/// `[[force_field]]`: a registered force field (a Python plug-in's) and the bodies it pushes.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceFieldSection {
+    /// The field's name (its plug-in's `SPRINGBAKE_PLUGIN["name"]`).
+    pub field: String,
+    /// Body names (`[[body]] name`, or the mesh's name); empty: every body.
+    #[serde(default)]
+    pub bodies: Vec<String>,
 }
 
 /// `[wedge]`: the variations `springbake wedge` bakes, as the cartesian product of their

@@ -1,7 +1,8 @@
-//! The bake's particle effects (`[[emitter]]`, see `springbake_core::particles`): emitted and
-//! integrated alongside the bodies, frame by frame, in the world's gravity and against its
-//! floor and walls; an emitter that follows a body rides on its centre of mass. Recorded in
-//! Y-up metres for the exporters.
+//! The bake's effects beyond the bodies' own physics: particle effects (`[[emitter]]`, see
+//! `springbake_core::particles`), emitted and integrated alongside the bodies, frame by frame,
+//! in the world's gravity and against its floor and walls (an emitter that follows a body
+//! rides on its centre of mass; recorded in Y-up metres for the exporters), and force fields
+//! (`[[force_field]]`, plug-ins bound to bodies, see `springbake_core::solver::fields`).
 
 use crate::simulate::Prepared;
 use crate::PipelineError;
@@ -9,7 +10,59 @@ use springbake_core::bake::BakedParticles;
 use springbake_core::display::UpAxis;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::particles::{ParticleEnv, ParticleSystem};
+use springbake_core::plugin::Registry;
 use springbake_core::scene::SceneFile;
+use springbake_core::solver::fields::FieldBinding;
+use springbake_core::solver::{BodyHandle, World};
+
+/// Binds each `[[force_field]]` to its bodies (all when it names none); an unknown field or
+/// body is refused (exit 2) with what there is.
+pub fn bind_force_fields(
+    scene: &SceneFile,
+    registry: &Registry,
+    world: &mut World,
+    bodies: &[(Option<String>, String, BodyHandle)],
+) -> Result<(), PipelineError> {
+    for (i, section) in scene.force_field.iter().enumerate() {
+        let field = registry.force_field(&section.field).ok_or_else(|| {
+            let known: Vec<&str> = registry.force_fields().iter().map(|f| f.name()).collect();
+            PipelineError::Usage(format!(
+                "force_field[{i}].field: no force field is named {:?} (found: {}); a Python \
+                 plug-in of kind \"force_field\" in plugins/ beside the scene provides one",
+                section.field,
+                if known.is_empty() {
+                    "none".to_owned()
+                } else {
+                    known.join(", ")
+                }
+            ))
+        })?;
+        for (section_name, mesh_name, handle) in bodies {
+            let named = section.bodies.is_empty()
+                || section
+                    .bodies
+                    .iter()
+                    .any(|b| Some(b) == section_name.as_ref() || b == mesh_name);
+            if named {
+                world.fields.push(FieldBinding {
+                    field: field.clone(),
+                    nodes: world.bodies[handle.0].nodes.clone(),
+                });
+            }
+        }
+        for b in &section.bodies {
+            if !bodies
+                .iter()
+                .any(|(s, m, _)| Some(b) == s.as_ref() || b == m)
+            {
+                return Err(PipelineError::Usage(format!(
+                    "force_field[{i}].bodies: no body is named {b:?}"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// The emitters of one bake and what they recorded so far.
 pub struct Effects {

@@ -98,6 +98,15 @@ pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Regist
         });
         registry.register_exporter(e);
     }
+    for f in discovered.force_fields {
+        found.loaded.push(FoundPlugin {
+            kind: "force_field",
+            name: springbake_core::solver::fields::ForceField::name(&f).to_owned(),
+            extensions: Vec::new(),
+            file: f.file().to_path_buf(),
+        });
+        registry.register_force_field(f);
+    }
     found.failed = discovered.failed;
     (registry, found)
 }
@@ -132,6 +141,7 @@ impl PipelineError {
             }
             PipelineError::Plugin(p) => p.kind != IoErrorKind::Io || !p.path.exists(),
             PipelineError::Simulation(SimulationError::NonFinite { .. }) => true,
+            PipelineError::Simulation(SimulationError::Field(_)) => true,
             PipelineError::Simulation(SimulationError::Cancelled) => false,
             PipelineError::Io { .. } => false,
         }

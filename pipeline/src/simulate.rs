@@ -417,6 +417,7 @@ pub fn prepare(
     crate::colliders::wire(registry, loaded, &frame, &mut world, &bodies, &export_scene)?;
     add_constraints(scene, &mut world, &body_names)?;
     crate::models::add_joints(scene, &mut world, &body_names)?;
+    crate::effects::bind_force_fields(scene, registry, &mut world, &body_names)?;
     let events = crate::events::EventDriver::wire(scene, registry, &mut world, &bodies).map_err(
         |message| match &loaded.scene_path {
             Some(path) => PipelineError::Scene {

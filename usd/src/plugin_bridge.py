@@ -16,7 +16,7 @@ class BridgeError(Exception):
         self.location = location
 
 
-KINDS = ("importer", "exporter")
+KINDS = ("importer", "exporter", "force_field")
 
 
 def _where(error, path):
@@ -48,19 +48,21 @@ def load_plugin(path):
         raise _raised(e, path, "loading")
     info = namespace.get("SPRINGBAKE_PLUGIN")
     if not isinstance(info, dict):
-        raise BridgeError("defines no SPRINGBAKE_PLUGIN dict (kind, name, extensions)", path)
+        raise BridgeError("defines no SPRINGBAKE_PLUGIN dict (kind, name, extensions)")
     kind, name, extensions = info.get("kind"), info.get("name"), info.get("extensions")
     if kind not in KINDS:
-        raise BridgeError("SPRINGBAKE_PLUGIN['kind'] must be one of %s, got %r" % (KINDS, kind), path)
+        raise BridgeError("SPRINGBAKE_PLUGIN['kind'] must be one of %s, got %r" % (KINDS, kind))
     if not isinstance(name, str) or not name:
-        raise BridgeError("SPRINGBAKE_PLUGIN['name'] must be a non-empty string", path)
-    if not isinstance(extensions, (list, tuple)) or not extensions or not all(
+        raise BridgeError("SPRINGBAKE_PLUGIN['name'] must be a non-empty string")
+    if kind == "force_field":
+        extensions = []
+    elif not isinstance(extensions, (list, tuple)) or not extensions or not all(
         isinstance(e, str) and e and "." not in e for e in extensions
     ):
-        raise BridgeError("SPRINGBAKE_PLUGIN['extensions'] must be a list like ['ply']", path)
-    entry = {"importer": "import_file", "exporter": "export"}[kind]
+        raise BridgeError("SPRINGBAKE_PLUGIN['extensions'] must be a list like ['ply']")
+    entry = {"importer": "import_file", "exporter": "export", "force_field": "force"}[kind]
     if not callable(namespace.get(entry)):
-        raise BridgeError("a %s plug-in must define %s()" % (kind, entry), path)
+        raise BridgeError("a %s plug-in must define %s()" % (kind, entry))
     return namespace, kind, name, [e.lower() for e in extensions]
 
 
@@ -84,7 +86,7 @@ def call_import(namespace, plugin_path, path):
     except BaseException as e:
         raise _raised(e, plugin_path, "importing " + path)
     if not isinstance(meshes, (list, tuple)) or not meshes:
-        raise BridgeError("import_file() must return a non-empty list of meshes", plugin_path)
+        raise BridgeError("import_file() must return a non-empty list of meshes")
     out = []
     for k, m in enumerate(meshes):
         where = "import_file()[%d]" % k
@@ -132,4 +134,29 @@ def call_export(namespace, plugin_path, spec, out_path):
     except BaseException as e:
         raise _raised(e, plugin_path, "exporting")
     if not os.path.isfile(out_path):
-        raise BridgeError("export() wrote nothing to the path it was given", plugin_path)
+        raise BridgeError("export() wrote nothing to the path it was given")
+
+
+def _wants_masses(function):
+    import inspect
+
+    try:
+        return len(inspect.signature(function).parameters) >= 4
+    except (TypeError, ValueError):
+        return False
+
+
+def call_force(namespace, plugin_path, positions, velocities, masses, time):
+    """The field's forces (n×3 f64 bytes) on nodes given as flat f64 bytes."""
+    x = np.frombuffer(positions, dtype="<f8").reshape(-1, 3)
+    v = np.frombuffer(velocities, dtype="<f8").reshape(-1, 3)
+    m = np.frombuffer(masses, dtype="<f8")
+    function = namespace["force"]
+    try:
+        if _wants_masses(function):
+            f = function(x, v, float(time), m)
+        else:
+            f = function(x, v, float(time))
+    except BaseException as e:
+        raise _raised(e, plugin_path, "computing forces")
+    return _array(f, "force()", 3, np.float64, "force()").tobytes()

@@ -16,10 +16,11 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::BakedScene;
 use springbake_core::display::{DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis};
-use springbake_core::nalgebra::Matrix4;
+use springbake_core::nalgebra::{Matrix4, Vector3};
 use springbake_core::plugin::{
     ExportSettings, Exporter, ImportSettings, Importer, IoErrorKind, OutputFile, PluginError,
 };
+use springbake_core::solver::fields::ForceField;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
@@ -65,6 +66,8 @@ struct Loaded {
     file: PathBuf,
     up_axis: UpAxis,
     meters_per_unit: f64,
+    /// A force field's `SPRINGBAKE_PLUGIN["every"] == "substep"`.
+    per_substep: bool,
 }
 
 /// What discovery found.
@@ -72,6 +75,7 @@ struct Loaded {
 pub struct Discovered {
     pub importers: Vec<PythonImporter>,
     pub exporters: Vec<PythonExporter>,
+    pub force_fields: Vec<PythonForceField>,
     /// Files that failed to load, with why.
     pub failed: Vec<(PathBuf, String)>,
 }
@@ -99,6 +103,8 @@ pub fn discover(folders: &[PathBuf]) -> Discovered {
                             extensions,
                             loaded,
                         });
+                    } else if kind == "force_field" {
+                        found.force_fields.push(PythonForceField { name, loaded });
                     } else {
                         found.exporters.push(PythonExporter {
                             name,
@@ -107,7 +113,13 @@ pub fn discover(folders: &[PathBuf]) -> Discovered {
                         });
                     }
                 }
-                Err(e) => found.failed.push((file, e.to_string())),
+                Err(e) => {
+                    let why = match e.location {
+                        Some(at) => format!("{at}: {}", e.message),
+                        None => e.message,
+                    };
+                    found.failed.push((file, why));
+                }
             }
         }
     }
@@ -140,12 +152,18 @@ fn load(file: &Path) -> Result<Manifest, PluginError> {
             .and_then(|v| v.extract::<f64>().ok())
             .filter(|m| m.is_finite() && *m > 0.0)
             .unwrap_or(1.0);
+        let per_substep = info
+            .get_item("every")
+            .ok()
+            .and_then(|v| v.extract::<String>().ok())
+            .is_some_and(|e| e == "substep");
         Ok((
             Loaded {
                 namespace: namespace.unbind(),
                 file: file.to_path_buf(),
                 up_axis,
                 meters_per_unit,
+                per_substep,
             },
             kind,
             name,
@@ -382,5 +400,69 @@ impl Exporter for PythonExporter {
             path: out.to_path_buf(),
             bytes,
         }])
+    }
+}
+
+/// A force-field plug-in (`force(positions, velocities, time[, masses]) -> forces`).
+#[derive(Debug)]
+pub struct PythonForceField {
+    name: String,
+    loaded: Arc<Loaded>,
+}
+
+impl PythonForceField {
+    /// The plug-in's file.
+    pub fn file(&self) -> &Path {
+        &self.loaded.file
+    }
+}
+
+impl ForceField for PythonForceField {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn per_substep(&self) -> bool {
+        self.loaded.per_substep
+    }
+
+    fn force(
+        &self,
+        positions: &[Vector3<f64>],
+        velocities: &[Vector3<f64>],
+        masses: &[f64],
+        time: f64,
+    ) -> Result<Vec<Vector3<f64>>, String> {
+        let plugin = &self.loaded;
+        let flat = |v: &[Vector3<f64>]| -> Vec<u8> {
+            v.iter()
+                .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
+                .collect()
+        };
+        let masses: Vec<u8> = masses.iter().flat_map(|m| m.to_le_bytes()).collect();
+        let bytes = with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
+            let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
+            let out = bridge
+                .call_method1(
+                    "call_force",
+                    (
+                        plugin.namespace.bind(py),
+                        plugin.file.to_string_lossy().into_owned(),
+                        PyBytes::new(py, &flat(positions)),
+                        PyBytes::new(py, &flat(velocities)),
+                        PyBytes::new(py, &masses),
+                        time,
+                    ),
+                )
+                .map_err(to_err)?;
+            out.cast::<PyBytes>()
+                .map(|b| b.as_bytes().to_vec())
+                .map_err(|e| to_err(e.into()))
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(floats(&bytes)
+            .chunks_exact(3)
+            .map(|c| Vector3::new(c[0], c[1], c[2]))
+            .collect())
     }
 }

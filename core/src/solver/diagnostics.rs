@@ -79,4 +79,7 @@ pub enum SimulationError {
     },
     #[error("cancelled")]
     Cancelled,
+    /// A force field failed (a plug-in's exception, a wrong number of forces).
+    #[error("{0}")]
+    Field(String),
 }

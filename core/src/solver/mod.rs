@@ -15,6 +15,7 @@ mod contact;
 pub mod contact_log;
 pub mod deformation_damping;
 pub mod diagnostics;
+pub mod fields;
 mod forces;
 mod integrator;
 pub mod joints;

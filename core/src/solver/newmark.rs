@@ -127,6 +127,9 @@ fn accelerations(world: &World, st: &mut NewmarkState, t: f64, dt: f64) -> f64 {
             // Body–body and collider contacts, from the step's starting state.
             f += world.body_contact.force[i];
         }
+        if let Some(field) = world.field_force.get(i) {
+            f += field;
+        }
         if has_contact && world.node_contact[i] && !near {
             // Out of reach node_contacts gives +0; adding it keeps the bits (−0 turns +0).
             f += Vector3::zeros();

@@ -92,8 +92,10 @@ impl World {
             bodies,
             contact_log,
             body_contact,
+            field_force,
             ..
         } = self;
+        let fields = (!field_force.is_empty()).then_some(&field_force[..]);
         let p = prepared.as_mut().expect("prepared");
         // Capsules of the scripted tracks at this time plus the live ones (reused buffer).
         p.capsules.clear();
@@ -315,6 +317,9 @@ impl World {
                         }
                         if let Some((w, air)) = wind {
                             f += w.force(air, *v, mass[i]);
+                        }
+                        if let Some(fields) = fields {
+                            f += fields[i];
                         }
                         if has_contact && node_contact[i] {
                             if block_near[i / CONTACT_BLOCK] {

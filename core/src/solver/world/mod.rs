@@ -154,6 +154,12 @@ pub struct World {
     /// Shared joint nodes of articulated bodies (see [`super::joints`]), synced after each
     /// step.
     pub joints: Vec<super::joints::SharedNode>,
+    /// Force fields bound to bodies (see [`super::fields`]).
+    pub fields: Vec<super::fields::FieldBinding>,
+    /// Their forces per node, N (empty without fields).
+    pub(crate) field_force: Vec<Vector3<f64>>,
+    /// The first failure of a field this frame.
+    pub(crate) field_error: Option<String>,
     /// Newmark-β state (the previous step's accelerations), once a Newmark step ran.
     pub(crate) newmark: Option<NewmarkState>,
     /// What each body touched during the last frame (see [`super::contact_log`]).
@@ -359,6 +365,9 @@ impl World {
             volume: Vec::new(),
             rigid: Vec::new(),
             joints: Vec::new(),
+            fields: Vec::new(),
+            field_force: Vec::new(),
+            field_error: None,
             newmark: None,
             contact_log: ContactLog::default(),
             body_contact: BodyContact::default(),
@@ -700,6 +709,7 @@ impl World {
                     .map(|i| (self.nodes.position[i], self.nodes.velocity[i])),
             );
         }
+        super::fields::refresh(self, true);
         let integrator = self.settings.integrator;
         let mut stats = integrator.substep(self, dt, acc);
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -757,6 +767,7 @@ impl World {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
         let (kinetic, elastic, gravity) = self.energies();
+        super::fields::refresh(self, false);
         self.contact_log.begin_frame();
         on_worker(self.parallel_size(), || {
             for _ in 0..choice.substeps {
@@ -766,6 +777,9 @@ impl World {
         self.contact_log.end_frame();
         if cancelled() {
             return Err(SimulationError::Cancelled);
+        }
+        if let Some(message) = self.field_error.take() {
+            return Err(SimulationError::Field(message));
         }
         self.check_finite(frame)?;
         let mut diag = self.diagnostics(frame);
@@ -783,6 +797,7 @@ impl World {
         diag.manipulator_work = acc.manipulator_work;
         let manipulated = !self.manipulators.is_empty() || !self.live_capsules.is_empty();
         let balanced = self.settings.wind.is_none()
+            && self.fields.is_empty()
             && (self.settings.integrator == Integrator::Xpbd || !manipulated);
         let total = kinetic + elastic + gravity;
         let budget = self.energy_budget.map_or(total, |b| b.max(total)) + acc.manipulator_work;

@@ -327,6 +327,7 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
     let layer_k = world.settings.layer.stiffness;
     let bc = &world.body_contact;
     let body_force = bc.active.then_some(&bc.force[..]);
+    let fields = (!world.field_force.is_empty()).then_some(&world.field_force[..]);
     let nodes = &mut world.nodes;
     let mass = &nodes.mass[..];
     model.inv_mass.copy_from_slice(&nodes.inv_mass);
@@ -349,6 +350,9 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
                 let mut f = V3::zeros();
                 if let Some((w, air)) = wind {
                     f += w.force(air, vs[j], m);
+                }
+                if let Some(fields) = fields {
+                    f += fields[i];
                 }
                 vs[j] += (gravity + f / m) * dt;
                 if let Some(bf) = body_force {
