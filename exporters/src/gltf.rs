@@ -20,6 +20,8 @@
 //! fixed order.
 
 pub(crate) mod builder;
+mod static_mesh;
+pub use static_mesh::{static_glb, StaticMesh};
 mod pca;
 
 use builder::{image_mime, uri_encode, DocBuilder};

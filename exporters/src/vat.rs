@@ -30,7 +30,6 @@
 
 mod textures;
 
-use crate::gltf::builder::DocBuilder;
 use nalgebra::Point3;
 use serde_json::json;
 use springbake_core::bake::BakedScene;
@@ -185,36 +184,17 @@ fn offset_bounds(merged: &Merged) -> ([f32; 3], [f32; 3]) {
 }
 
 fn rest_mesh(merged: &Merged, layout: &Layout, name: &str) -> Vec<u8> {
-    let mut doc = DocBuilder::default();
-    let position = doc.vec3(&merged.positions[0], true);
-    let normal = doc.vec3(&merged.normals[0], false);
     let lookup: Vec<[f32; 2]> = (0..layout.vertex_count)
         .map(|v| layout.lookup_uv(v))
         .collect();
-    let lookup = doc.vec2(&lookup);
-    let indices = doc.indices(&merged.triangles);
-    let mut attributes = json!({"POSITION": position, "NORMAL": normal, "TEXCOORD_1": lookup});
-    if let Some(uvs) = &merged.uvs {
-        attributes["TEXCOORD_0"] = json!(doc.vec2(uvs));
-    }
-    doc.push(
-        "materials",
-        json!({"name": "vat", "pbrMetallicRoughness": {"metallicFactor": 0.0}}),
-    );
-    doc.push(
-        "meshes",
-        json!({"name": name, "primitives": [
-            {"attributes": attributes, "indices": indices, "material": 0}
-        ]}),
-    );
-    doc.push("nodes", json!({"name": name, "mesh": 0}));
-    doc.push("scenes", json!({"nodes": [0]}));
-    doc.root.insert("scene".into(), json!(0));
-    doc.root.insert(
-        "asset".into(),
-        json!({"version": "2.0", "generator": concat!("springbake ", env!("CARGO_PKG_VERSION"))}),
-    );
-    doc.into_glb()
+    crate::gltf::static_glb(&crate::gltf::StaticMesh {
+        name,
+        positions: &merged.positions[0],
+        normals: &merged.normals[0],
+        uv0: merged.uvs.as_deref(),
+        uv1: Some(&lookup),
+        indices: &merged.triangles,
+    })
 }
 
 /// Writes the bake as vertex animation textures.
