@@ -4,9 +4,11 @@
 //! another format puts it (a glTF morph cache; a Z-up USD stage with a hierarchy), to 1e-5 m.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{corpus_dir, last_json_line, run_python_client};
 use std::path::Path;
-use std::process::Command;
+use support::bake_scene;
 
 const FRAMES: usize = 24;
 
@@ -15,17 +17,7 @@ fn bake(dir: &Path, source: &str, output: &str) {
         "[output]\npath = \"{output}\"\nframes = {FRAMES}\n\n[world]\nfloor = 0.0\n\n\
          [[body]]\nsource = \"{source}\"\ncells = 6\n"
     );
-    let file = dir.join(format!("{output}.toml"));
-    std::fs::write(&file, scene).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(["bake", file.to_str().unwrap(), "--progress", "quiet"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    bake_scene(dir, &format!("{output}.toml"), &scene);
 }
 
 /// Bakes `source` to `.abc` and to `reference`, and has Blender compare them.

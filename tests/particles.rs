@@ -6,9 +6,11 @@
 //! a `follow` that names no body is refused with exit code 2.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{corpus_dir, last_json_line, run_python_client};
 use std::path::Path;
-use std::process::Command;
+use support::{springbake_in, succeeded};
 
 const SCENE: &str = r#"
 [output]
@@ -61,22 +63,14 @@ spread = 60
 "#;
 
 fn bake(dir: &Path, output: &str, follow: &str) -> std::process::Output {
-    let file = dir.join(format!("{output}.toml"));
+    let file = format!("{output}.toml");
     let text = SCENE.replace("OUTPUT", output).replace("FOLLOW", follow);
-    std::fs::write(&file, text).unwrap();
-    Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(["bake", file.to_str().unwrap(), "--progress", "quiet"])
-        .output()
-        .unwrap()
+    std::fs::write(dir.join(&file), text).unwrap();
+    springbake_in(dir, &["bake", &file, "--progress", "quiet"])
 }
 
 fn baked(dir: &Path, output: &str) {
-    let out = bake(dir, output, "ball");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&bake(dir, output, "ball"));
 }
 
 fn column(report: &serde_json::Value, prim: &str, k: usize) -> Vec<f64> {

@@ -5,9 +5,11 @@
 //! axes, which do not line up in Blender (the check can fail).
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{corpus_dir, last_json_line, run_python_client};
 use std::path::Path;
-use std::process::Command;
+use support::bake_scene;
 
 fn bake(dir: &Path, output: &str, axes: Option<&str>) {
     let axes = axes.map_or(String::new(), |a| format!("cache_axes = \"{a}\"\n"));
@@ -15,17 +17,7 @@ fn bake(dir: &Path, output: &str, axes: Option<&str>) {
         "[output]\npath = \"{output}\"\nframes = 24\n{axes}\n[world]\nfloor = 0.0\n\n\
          [[body]]\nsource = \"two_objects.glb\"\ncells = 6\n"
     );
-    let file = dir.join(format!("{output}.toml"));
-    std::fs::write(&file, scene).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(["bake", file.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    bake_scene(dir, &format!("{output}.toml"), &scene);
 }
 
 fn worst(dir: &Path, prefix: &str) -> serde_json::Value {

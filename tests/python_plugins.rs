@@ -6,28 +6,12 @@
 //! `--no-plugins` turns discovery off.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{last_json_line, workspace_root};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn springbake(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(args)
-        .current_dir(dir)
-        .env_remove("SPRINGBAKE_PLUGIN_PATH")
-        .env("XDG_CONFIG_HOME", dir.join("no-config"))
-        .output()
-        .unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use std::process::Command;
+use support::{springbake_in as springbake, succeeded as ok};
 
 /// A folder with Blender's PLY of a UV sphere (r 0.3 m, centre 0.8 m up) and the examples.
 fn setup() -> tempfile::TempDir {

@@ -4,8 +4,10 @@
 //! (`.usda`, `.usdc`, `.usdz` sources; Z-up; a hierarchy; an open surface).
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{corpus_dir, last_json_line, run_python_client};
-use std::process::Command;
+use support::{springbake_in, succeeded};
 
 #[test]
 fn every_usd_we_write_passes_the_validators_and_the_dcc_rules() {
@@ -27,17 +29,21 @@ fn every_usd_we_write_passes_the_validators_and_the_dcc_rules() {
     let mut outputs = Vec::new();
     for (source, output) in cases {
         std::fs::copy(corpus_dir().join("blender").join(source), d.join(source)).unwrap();
-        let out = Command::new(env!("CARGO_BIN_EXE_springbake"))
-            .args(["bake", source, "-o", output, "--frames", "12"])
-            .args(["--cells", "5", "--progress", "quiet"])
-            .current_dir(d)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{source}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        succeeded(&springbake_in(
+            d,
+            &[
+                "bake",
+                source,
+                "-o",
+                output,
+                "--frames",
+                "12",
+                "--cells",
+                "5",
+                "--progress",
+                "quiet",
+            ],
+        ));
         outputs.push(d.join(output).to_string_lossy().into_owned());
     }
     let args: Vec<&str> = outputs.iter().map(String::as_str).collect();

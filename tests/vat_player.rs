@@ -5,9 +5,11 @@
 //! is played and compared the same way. A Y-up glTF and a Z-up USD hierarchy of two parts.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{corpus_dir, last_json_line, run_node_client};
 use std::path::Path;
-use std::process::Command;
+use support::bake_scene;
 
 const FRAMES: usize = 24;
 
@@ -16,17 +18,7 @@ fn bake(dir: &Path, source: &str, output: &str, cache: &str) {
         "[output]\npath = \"{output}\"\nframes = {FRAMES}\n{cache}\n\n[world]\nfloor = 0.0\n\n\
          [[body]]\nsource = \"{source}\"\ncells = 6\n"
     );
-    let file = dir.join(format!("{output}.toml"));
-    std::fs::write(&file, scene).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_springbake"))
-        .args(["bake", file.to_str().unwrap(), "--progress", "quiet"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    bake_scene(dir, &format!("{output}.toml"), &scene);
 }
 
 fn play(source: &str) -> serde_json::Value {

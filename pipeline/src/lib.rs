@@ -80,31 +80,25 @@ pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Regist
         return (registry, found);
     }
     let discovered = springbake_usd::python_plugins::discover(&folders);
-    for i in discovered.importers {
+    let mut note = |kind: &'static str, name: &str, extensions: &[&str], file: &Path| {
         found.loaded.push(FoundPlugin {
-            kind: "importer",
-            name: i.name().to_owned(),
-            extensions: i.extensions().iter().map(|e| e.to_string()).collect(),
-            file: i.file().to_path_buf(),
+            kind,
+            name: name.to_owned(),
+            extensions: extensions.iter().map(|e| e.to_string()).collect(),
+            file: file.to_path_buf(),
         });
+    };
+    for i in discovered.importers {
+        note("importer", i.name(), i.extensions(), i.file());
         registry.register_importer(i);
     }
     for e in discovered.exporters {
-        found.loaded.push(FoundPlugin {
-            kind: "exporter",
-            name: e.name().to_owned(),
-            extensions: e.extensions().iter().map(|x| x.to_string()).collect(),
-            file: e.file().to_path_buf(),
-        });
+        note("exporter", e.name(), e.extensions(), e.file());
         registry.register_exporter(e);
     }
     for f in discovered.force_fields {
-        found.loaded.push(FoundPlugin {
-            kind: "force_field",
-            name: springbake_core::solver::fields::ForceField::name(&f).to_owned(),
-            extensions: Vec::new(),
-            file: f.file().to_path_buf(),
-        });
+        let name = springbake_core::solver::fields::ForceField::name(&f).to_owned();
+        note("force_field", &name, &[], f.file());
         registry.register_force_field(f);
     }
     found.failed = discovered.failed;

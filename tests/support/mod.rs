@@ -44,3 +44,27 @@ pub fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
     buf.truncate(info.buffer_size());
     (info.width, info.height, buf)
 }
+
+/// Runs `springbake` with `args` in `dir` (no plug-ins from the user's config folder or
+/// `$SPRINGBAKE_PLUGIN_PATH`) and waits for it.
+pub fn springbake_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_springbake"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("SPRINGBAKE_PLUGIN_PATH")
+        .env("XDG_CONFIG_HOME", dir.join("no-config"))
+        .output()
+        .expect("run springbake")
+}
+
+/// Its stdout, after asserting it succeeded (its stderr in the failure).
+pub fn succeeded(out: &Output) -> String {
+    assert!(out.status.success(), "{}", stderr(out));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Writes `scene` to `dir/file` and bakes it quietly; panics with the CLI's stderr if it fails.
+pub fn bake_scene(dir: &Path, file: &str, scene: &str) {
+    std::fs::write(dir.join(file), scene).expect("write the scene");
+    succeeded(&springbake_in(dir, &["bake", file, "--progress", "quiet"]));
+}

@@ -18,8 +18,10 @@
 //! Winding: Alembic's faces are clockwise seen from outside (Blender and Maya reverse each
 //! face on import), so every triangle is written reversed, with its face-varying data.
 
-use crate::export::{check_frames, prim_name};
-use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge_of, Bridge};
+use crate::export::{checked_meshes, prim_name};
+use crate::python::{
+    f32_bytes, i32_bytes, plugin_error, through_temp_file, with_bridge_of, Bridge,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::{BakedMesh, BakedScene};
@@ -124,27 +126,10 @@ impl AlembicExporter {
         out: &Path,
         temp: &Path,
     ) -> Result<(), PluginError> {
-        if !(baked.fps.is_finite() && baked.fps > 0.0) {
-            return Err(PluginError::invalid(
-                out,
-                format!("fps {} is not positive", baked.fps),
-            ));
-        }
         let to_alembic = scene.y_up_metres_from_world();
         let mut taken = HashSet::new();
         let mut meshes = Vec::new();
-        for bm in &baked.meshes {
-            let mesh = scene.meshes.get(bm.mesh_index).ok_or_else(|| {
-                PluginError::invalid(
-                    out,
-                    format!(
-                        "baked mesh refers to mesh {} but the scene has {}",
-                        bm.mesh_index,
-                        scene.meshes.len()
-                    ),
-                )
-            })?;
-            check_frames(bm, mesh, baked.frame_count, out)?;
+        for (bm, mesh) in checked_meshes(scene, baked, out)? {
             let world = to_alembic * mesh.world_from_local;
             meshes.push((
                 prim_name(&mesh.name, &mut taken),
@@ -206,16 +191,8 @@ impl Exporter for AlembicExporter {
         settings: &ExportSettings,
     ) -> Result<Vec<OutputFile>, PluginError> {
         let out = settings.path.as_path();
-        let dir = tempfile::tempdir()
-            .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
-        let temp = dir.path().join("baked.abc");
-        self.write(scene, baked, out, &temp)?;
-        let bytes = std::fs::read(&temp).map_err(|e| {
-            PluginError::new(
-                IoErrorKind::Io,
-                out,
-                format!("reading back alembic3d's output {}: {e}", temp.display()),
-            )
+        let bytes = through_temp_file(out, "baked.abc", "alembic3d", |temp| {
+            self.write(scene, baked, out, temp)
         })?;
         Ok(vec![OutputFile {
             path: out.to_path_buf(),

@@ -18,7 +18,7 @@
 use crate::import::read_stage;
 use crate::mesh::{extent, face_varying_normals, point_normals, Interpolation, RawMesh};
 use crate::particles::particles_spec;
-use crate::python::{f32_bytes, i32_bytes, plugin_error, with_bridge};
+use crate::python::{f32_bytes, i32_bytes, plugin_error, through_temp_file, with_bridge};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::{BakedMesh, BakedScene};
@@ -37,7 +37,7 @@ struct Frames {
     normals: Option<(Vec<u8>, usize, &'static str)>,
 }
 
-pub(crate) fn check_frames(
+fn check_frames(
     baked: &BakedMesh,
     mesh: &DisplayMesh,
     frame_count: usize,
@@ -80,6 +80,37 @@ pub(crate) fn check_frames(
         ));
     }
     Ok(())
+}
+
+/// Each baked mesh with its display mesh, after checking the frame rate and every frame's
+/// vertex count and finiteness.
+pub(crate) fn checked_meshes<'a>(
+    scene: &'a ImportedScene,
+    baked: &'a BakedScene,
+    out: &Path,
+) -> Result<Vec<(&'a BakedMesh, &'a DisplayMesh)>, PluginError> {
+    if !(baked.fps.is_finite() && baked.fps > 0.0) {
+        return Err(PluginError::invalid(
+            out,
+            format!("fps {} is not positive", baked.fps),
+        ));
+    }
+    let mut items = Vec::new();
+    for bm in &baked.meshes {
+        let mesh = scene.meshes.get(bm.mesh_index).ok_or_else(|| {
+            PluginError::invalid(
+                out,
+                format!(
+                    "baked mesh refers to mesh {} but the scene has {}",
+                    bm.mesh_index,
+                    scene.meshes.len()
+                ),
+            )
+        })?;
+        check_frames(bm, mesh, baked.frame_count, out)?;
+        items.push((bm, mesh));
+    }
+    Ok(items)
 }
 
 /// Frames of a mesh that came from a USD stage, in the stage's point order.
@@ -352,27 +383,7 @@ impl UsdExporter {
         out: &Path,
         temp: &Path,
     ) -> Result<(), PluginError> {
-        if !(baked.fps.is_finite() && baked.fps > 0.0) {
-            return Err(PluginError::invalid(
-                out,
-                format!("fps {} is not positive", baked.fps),
-            ));
-        }
-        let mut items = Vec::new();
-        for bm in &baked.meshes {
-            let mesh = scene.meshes.get(bm.mesh_index).ok_or_else(|| {
-                PluginError::invalid(
-                    out,
-                    format!(
-                        "baked mesh refers to mesh {} but the scene has {}",
-                        bm.mesh_index,
-                        scene.meshes.len()
-                    ),
-                )
-            })?;
-            check_frames(bm, mesh, baked.frame_count, out)?;
-            items.push((bm, mesh));
-        }
+        let items = checked_meshes(scene, baked, out)?;
         if scene.source.importer == "usd" {
             let source = &scene.source.path;
             let own_folder = source.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -540,16 +551,8 @@ impl Exporter for UsdExporter {
     ) -> Result<Vec<OutputFile>, PluginError> {
         let out = settings.path.as_path();
         let ext = output_extension(out)?;
-        let dir = tempfile::tempdir()
-            .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
-        let temp = dir.path().join(format!("baked.{ext}"));
-        self.write(scene, baked, out, &temp)?;
-        let bytes = std::fs::read(&temp).map_err(|e| {
-            PluginError::new(
-                IoErrorKind::Io,
-                out,
-                format!("reading back usd-core's output {}: {e}", temp.display()),
-            )
+        let bytes = through_temp_file(out, &format!("baked.{ext}"), "usd-core", |temp| {
+            self.write(scene, baked, out, temp)
         })?;
         let mut files = vec![OutputFile {
             path: out.to_path_buf(),
@@ -565,7 +568,6 @@ impl Exporter for UsdExporter {
                 });
             }
         }
-        // `dir` is deleted when it goes out of scope.
         Ok(files)
     }
 }

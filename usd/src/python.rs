@@ -252,6 +252,27 @@ pub fn plugin_error(py: Python<'_>, err: PyErr, kind: IoErrorKind, file: &Path) 
     }
 }
 
+/// What `write` puts at a temporary path named `file_name` (a Python library writes files, not
+/// buffers), read back as the bytes of the output `out`; `who` names the writer in errors.
+pub fn through_temp_file(
+    out: &Path,
+    file_name: &str,
+    who: &str,
+    write: impl FnOnce(&Path) -> Result<(), PluginError>,
+) -> Result<Vec<u8>, PluginError> {
+    let dir = tempfile::tempdir()
+        .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
+    let temp = dir.path().join(file_name);
+    write(&temp)?;
+    std::fs::read(&temp).map_err(|e| {
+        PluginError::new(
+            IoErrorKind::Io,
+            out,
+            format!("reading back {who}'s output {}: {e}", temp.display()),
+        )
+    })
+}
+
 /// Bytes of a `bytes` object.
 pub fn bytes_of(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
     Ok(obj.cast::<PyBytes>()?.as_bytes().to_vec())

@@ -11,7 +11,7 @@
 //! caught and named by `plugin_bridge.py`. The host still writes every output atomically: an
 //! exporter plug-in writes to a temporary path it is given.
 
-use crate::python::{plugin_error, with_bridge_of, Bridge};
+use crate::python::{plugin_error, through_temp_file, with_bridge_of, Bridge};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::BakedScene;
@@ -326,10 +326,30 @@ impl Exporter for PythonExporter {
         settings: &ExportSettings,
     ) -> Result<Vec<OutputFile>, PluginError> {
         let out = settings.path.as_path();
+        let name = out
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let bytes = through_temp_file(out, &name, &self.name, |temp| {
+            self.run_export(scene, baked, temp)
+        })?;
+        Ok(vec![OutputFile {
+            path: out.to_path_buf(),
+            bytes,
+        }])
+    }
+}
+
+impl PythonExporter {
+    /// Calls the plug-in's `export` with the bake and `temp` to write.
+    fn run_export(
+        &self,
+        scene: &ImportedScene,
+        baked: &BakedScene,
+        temp: &Path,
+    ) -> Result<(), PluginError> {
         let plugin = &self.loaded;
-        let dir = tempfile::tempdir()
-            .map_err(|e| PluginError::new(IoErrorKind::Io, out, format!("temp folder: {e}")))?;
-        let temp = dir.path().join(out.file_name().unwrap_or_default());
         with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
             let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
             let spec = PyDict::new(py);
@@ -388,18 +408,7 @@ impl Exporter for PythonExporter {
                 )
                 .map_err(to_err)?;
             Ok(())
-        })?;
-        let bytes = std::fs::read(&temp).map_err(|e| {
-            PluginError::new(
-                IoErrorKind::Io,
-                &plugin.file,
-                format!("reading its output: {e}"),
-            )
-        })?;
-        Ok(vec![OutputFile {
-            path: out.to_path_buf(),
-            bytes,
-        }])
+        })
     }
 }
 
