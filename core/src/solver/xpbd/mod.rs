@@ -284,6 +284,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     model
         .restitution
         .before(world, dt, model.shortest_edge, touch);
+    push_by_fields(world, dt);
     predict(world, &mut model, dt);
     shift_bodies(world, &mut model);
     bind_paths(world, &mut model, time + dt);
@@ -320,6 +321,25 @@ fn log_contacts(world: &mut World, model: &Model, dt: f64) {
     step_contacts_of(world, dt, 0.0, points);
 }
 
+/// Stage 1a: the force fields' push on the velocities (a pass of its own, only with fields,
+/// so the prediction's loop stays as it is without them).
+fn push_by_fields(world: &mut World, dt: f64) {
+    if world.field_force.is_empty() {
+        return;
+    }
+    let nodes = &mut world.nodes;
+    for ((v, f), m) in nodes
+        .velocity
+        .iter_mut()
+        .zip(&world.field_force)
+        .zip(&nodes.mass)
+    {
+        if *m > 0.0 {
+            *v += f * (dt / m);
+        }
+    }
+}
+
 /// Stage 1: external forces and the predicted positions.
 fn predict(world: &mut World, model: &mut Model, dt: f64) {
     let gravity = world.settings.gravity;
@@ -327,7 +347,6 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
     let layer_k = world.settings.layer.stiffness;
     let bc = &world.body_contact;
     let body_force = bc.active.then_some(&bc.force[..]);
-    let fields = (!world.field_force.is_empty()).then_some(&world.field_force[..]);
     let nodes = &mut world.nodes;
     let mass = &nodes.mass[..];
     model.inv_mass.copy_from_slice(&nodes.inv_mass);
@@ -350,9 +369,6 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
                 let mut f = V3::zeros();
                 if let Some((w, air)) = wind {
                     f += w.force(air, vs[j], m);
-                }
-                if let Some(fields) = fields {
-                    f += fields[i];
                 }
                 vs[j] += (gravity + f / m) * dt;
                 if let Some(bf) = body_force {
