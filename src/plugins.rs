@@ -56,6 +56,17 @@ pub fn list(scene: Option<&Path>, with_plugins: bool) {
             );
         }
     }
+    let procedures: Vec<_> = found
+        .loaded
+        .iter()
+        .filter(|p| p.kind == "procedure")
+        .collect();
+    if !procedures.is_empty() {
+        println!("procedures:");
+        for p in procedures {
+            println!("  {:<8} {:<24}  ({})", p.name, "", p.file.display());
+        }
+    }
     if !found.failed.is_empty() {
         println!("not loaded:");
         for (file, why) in &found.failed {

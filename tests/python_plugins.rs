@@ -251,3 +251,62 @@ fn the_vortex_field_plugin_makes_a_body_orbit() {
         "{err}"
     );
 }
+
+/// The "squash on landing" example flattens the ball it runs on: fired in mid-air (where the
+/// plain ball stays round; on the floor the ball's own squash would hide it), the ball becomes
+/// wider than tall.
+#[test]
+fn the_squash_procedure_plugin_flattens_the_ball() {
+    let dir = setup();
+    let d = dir.path();
+    std::fs::copy(
+        workspace_root().join("examples/plugins/squash_procedure.py"),
+        d.join("plugins/squash_procedure.py"),
+    )
+    .unwrap();
+    std::fs::copy(
+        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    let scene = |squash: bool, out: &str| {
+        let event = if squash {
+            "[[event]]\nname = \"squash\"\nbody = \"ball\"\non = { time = 0.05 }\n\
+             procedure = { plugin = { name = \"squash\", args = { rate = 6.0 } } }\n"
+        } else {
+            ""
+        };
+        format!(
+            "[output]\npath = \"{out}\"\nframes = 7\n\n[world]\nfloor = 0.0\n\n\
+             [[body]]\nname = \"ball\"\nsource = \"icosphere.glb\"\ncells = 6\n\
+             material = \"soft_rubber\"\n\n{event}"
+        )
+    };
+    let flatness = |file: &str| {
+        let doc: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join(file)).unwrap()).unwrap();
+        let frames = doc["meshes"][0]["frames"].as_array().unwrap();
+        frames
+            .iter()
+            .map(|f| {
+                let f = f.as_array().unwrap();
+                let extent = |k: usize| {
+                    let c = f.iter().map(|p| p[k].as_f64().unwrap());
+                    c.clone().fold(f64::NEG_INFINITY, f64::max) - c.fold(f64::INFINITY, f64::min)
+                };
+                extent(0) / extent(1)
+            })
+            .fold(0.0, f64::max)
+    };
+    for (squash, out) in [(false, "plain.json"), (true, "squash.json")] {
+        std::fs::write(d.join(format!("{out}.toml")), scene(squash, out)).unwrap();
+        let file = format!("{out}.toml");
+        ok(&springbake(d, &["bake", &file, "--progress", "quiet"]));
+    }
+    assert!(ok(&springbake(d, &["plugins", "."])).contains("squash"));
+    let (plain, squashed) = (flatness("plain.json"), flatness("squash.json"));
+    assert!(
+        plain < 1.02 && squashed > 1.1,
+        "widest/tallest: {squashed} with the squash, {plain} without"
+    );
+}

@@ -101,6 +101,11 @@ pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Regist
         note("force_field", &name, &[], f.file());
         registry.register_force_field(f);
     }
+    for p in discovered.procedures {
+        let name = springbake_core::procedures::ProcedurePlugin::name(&p).to_owned();
+        note("procedure", &name, &[], p.file());
+        registry.register_procedure(p);
+    }
     found.failed = discovered.failed;
     (registry, found)
 }

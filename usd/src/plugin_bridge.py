@@ -16,7 +16,7 @@ class BridgeError(Exception):
         self.location = location
 
 
-KINDS = ("importer", "exporter", "force_field")
+KINDS = ("importer", "exporter", "force_field", "procedure")
 
 
 def _where(error, path):
@@ -54,13 +54,14 @@ def load_plugin(path):
         raise BridgeError("SPRINGBAKE_PLUGIN['kind'] must be one of %s, got %r" % (KINDS, kind))
     if not isinstance(name, str) or not name:
         raise BridgeError("SPRINGBAKE_PLUGIN['name'] must be a non-empty string")
-    if kind == "force_field":
+    if kind in ("force_field", "procedure"):
         extensions = []
     elif not isinstance(extensions, (list, tuple)) or not extensions or not all(
         isinstance(e, str) and e and "." not in e for e in extensions
     ):
         raise BridgeError("SPRINGBAKE_PLUGIN['extensions'] must be a list like ['ply']")
-    entry = {"importer": "import_file", "exporter": "export", "force_field": "force"}[kind]
+    entry = {"importer": "import_file", "exporter": "export", "force_field": "force",
+             "procedure": "run"}[kind]
     if not callable(namespace.get(entry)):
         raise BridgeError("a %s plug-in must define %s()" % (kind, entry))
     return namespace, kind, name, [e.lower() for e in extensions]
@@ -160,3 +161,42 @@ def call_force(namespace, plugin_path, positions, velocities, masses, time):
     except BaseException as e:
         raise _raised(e, plugin_path, "computing forces")
     return _array(f, "force()", 3, np.float64, "force()").tobytes()
+
+
+def call_check(namespace, plugin_path, args_json):
+    """The procedure's own check of its scene arguments (an optional `check(args)` that
+    raises on bad ones)."""
+    import json
+
+    check = namespace.get("check")
+    if callable(check):
+        try:
+            check(json.loads(args_json))
+        except BaseException as e:
+            raise _raised(e, plugin_path, "checking its arguments")
+
+
+def call_procedure(namespace, plugin_path, positions, velocities, masses, time, args_json):
+    """Runs the procedure on one body; returns its new node velocities (n×3 f64 bytes), or
+    None to leave them."""
+    import json
+
+    body = {
+        "positions": np.frombuffer(positions, dtype="<f8").reshape(-1, 3).copy(),
+        "velocities": np.frombuffer(velocities, dtype="<f8").reshape(-1, 3).copy(),
+        "masses": np.frombuffer(masses, dtype="<f8").copy(),
+        "time": float(time),
+    }
+    try:
+        out = namespace["run"](body, json.loads(args_json))
+    except BaseException as e:
+        raise _raised(e, plugin_path, "running")
+    if out is None:
+        return None
+    v = out.get("velocities") if isinstance(out, dict) else out
+    if v is None:
+        return None
+    v = _array(v, "run()['velocities']", 3, np.float64, "run()")
+    if len(v) != len(body["masses"]):
+        raise BridgeError("run() returned %d velocities for %d nodes" % (len(v), len(body["masses"])), "run()")
+    return v.tobytes()

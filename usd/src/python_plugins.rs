@@ -76,6 +76,7 @@ pub struct Discovered {
     pub importers: Vec<PythonImporter>,
     pub exporters: Vec<PythonExporter>,
     pub force_fields: Vec<PythonForceField>,
+    pub procedures: Vec<PythonProcedure>,
     /// Files that failed to load, with why.
     pub failed: Vec<(PathBuf, String)>,
 }
@@ -105,6 +106,8 @@ pub fn discover(folders: &[PathBuf]) -> Discovered {
                         });
                     } else if kind == "force_field" {
                         found.force_fields.push(PythonForceField { name, loaded });
+                    } else if kind == "procedure" {
+                        found.procedures.push(PythonProcedure { name, loaded });
                     } else {
                         found.exporters.push(PythonExporter {
                             name,
@@ -473,5 +476,105 @@ impl ForceField for PythonForceField {
             .chunks_exact(3)
             .map(|c| Vector3::new(c[0], c[1], c[2]))
             .collect())
+    }
+}
+
+/// An event-procedure plug-in (`run(body, args)` → new node velocities or None; optional
+/// `check(args)`), run as `{ plugin = { name, args } }` in an `[[event]]`.
+#[derive(Debug)]
+pub struct PythonProcedure {
+    name: String,
+    loaded: Arc<Loaded>,
+}
+
+impl PythonProcedure {
+    /// The plug-in's file.
+    pub fn file(&self) -> &Path {
+        &self.loaded.file
+    }
+}
+
+fn json_of(args: &toml::Table) -> String {
+    serde_json::to_string(args).unwrap_or_else(|_| "{}".into())
+}
+
+impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn check(&self, args: &toml::Table) -> Result<(), String> {
+        let plugin = &self.loaded;
+        with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
+            bridge
+                .call_method1(
+                    "call_check",
+                    (
+                        plugin.namespace.bind(py),
+                        plugin.file.to_string_lossy().into_owned(),
+                        json_of(args),
+                    ),
+                )
+                .map(|_| ())
+                .map_err(|e| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file))
+        })
+        .map_err(|e| e.to_string())
+    }
+
+    fn run(
+        &self,
+        world: &mut springbake_core::solver::World,
+        body: springbake_core::solver::BodyHandle,
+        args: &toml::Table,
+    ) -> Result<(), String> {
+        let plugin = &self.loaded;
+        let range = world.bodies[body.0].nodes.clone();
+        let flat = |v: &[Vector3<f64>]| -> Vec<u8> {
+            v.iter()
+                .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
+                .collect()
+        };
+        let nodes = &world.nodes;
+        let positions = flat(&nodes.position[range.clone()]);
+        let velocities = flat(&nodes.velocity[range.clone()]);
+        let masses: Vec<u8> = nodes.mass[range.clone()]
+            .iter()
+            .flat_map(|m| m.to_le_bytes())
+            .collect();
+        let time = world.time;
+        let out = with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
+            let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
+            let out = bridge
+                .call_method1(
+                    "call_procedure",
+                    (
+                        plugin.namespace.bind(py),
+                        plugin.file.to_string_lossy().into_owned(),
+                        PyBytes::new(py, &positions),
+                        PyBytes::new(py, &velocities),
+                        PyBytes::new(py, &masses),
+                        time,
+                        json_of(args),
+                    ),
+                )
+                .map_err(to_err)?;
+            if out.is_none() {
+                return Ok(None);
+            }
+            out.cast::<PyBytes>()
+                .map(|b| Some(b.as_bytes().to_vec()))
+                .map_err(|e| to_err(e.into()))
+        })
+        .map_err(|e| e.to_string())?;
+        if let Some(bytes) = out {
+            let v = floats(&bytes);
+            for (slot, c) in world.nodes.velocity[range]
+                .iter_mut()
+                .zip(v.chunks_exact(3))
+            {
+                *slot = Vector3::new(c[0], c[1], c[2]);
+            }
+        }
+        Ok(())
     }
 }
