@@ -537,7 +537,7 @@ fn run_bake(
 
 fn inspect(file: &Path, cells: u32, json: bool) -> Result<(), Failure> {
     use springbake_core::lattice::{fit_lattice, FitSettings, Resolution};
-    let registry = default_registry();
+    let (registry, _) = springbake_pipeline::registry_with_plugins(file.parent(), true);
     let importer = registry.importer_for(file).ok_or_else(|| {
         usage(format!(
             "{}: no importer for this extension; springbake reads {}",
@@ -625,6 +625,8 @@ fn watch(input: PathBuf, output: Option<PathBuf>, json: bool) -> Result<(), Fail
     if !input.exists() {
         return Err(usage(format!("{}: no such file", input.display())));
     }
+    // Plug-ins beside the input load once, when watching starts.
+    let (registry, _) = springbake_pipeline::registry_with_plugins(input.parent(), true);
     let bake_input = if is_scene(&input) {
         BakeInput::Scene(input)
     } else {
@@ -642,7 +644,7 @@ fn watch(input: PathBuf, output: Option<PathBuf>, json: bool) -> Result<(), Fail
         message: e.to_string(),
     })?;
     let job = BakeJob {
-        registry: default_registry(),
+        registry,
         input: bake_input,
     };
     Watcher::new(job, WatchOptions::default())

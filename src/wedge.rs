@@ -10,7 +10,7 @@ use crate::{usage, Failure};
 use serde_json::{json, Value};
 use springbake_core::plugin::OutputFile;
 use springbake_pipeline::wedge::{self, sha256_hex, WedgePlan};
-use springbake_pipeline::{bake, default_registry, write_outputs, BakeHooks};
+use springbake_pipeline::{bake, registry_with_plugins, write_outputs, BakeHooks};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -147,7 +147,8 @@ fn bake_variant(plan: &WedgePlan, index: usize, out: &Path) -> Result<(), Failur
     std::fs::create_dir_all(&folder).map_err(|e| io_failure(&folder, e))?;
     let hash = plan.input_hash(index)?;
     let started = Instant::now();
-    let outcome = bake(&default_registry(), &loaded, &mut BakeHooks::default())?;
+    let (registry, _) = registry_with_plugins(Some(&loaded.read_root()), true);
+    let outcome = bake(&registry, &loaded, &mut BakeHooks::default())?;
     let seconds = started.elapsed().as_secs_f64();
     let mut outputs = Vec::new();
     for file in &outcome.outputs {

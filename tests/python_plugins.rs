@@ -144,6 +144,12 @@ fn plugins_are_listed_with_their_files_and_a_broken_one_with_its_error() {
         listing.contains("not loaded") && listing.contains("broken.py") && listing.contains("line"),
         "{listing}"
     );
+    // `inspect` reads through the plug-in too.
+    let shown = ok(&springbake(d, &["inspect", "ball.ply"]));
+    assert!(
+        shown.contains("(ply, Z-up") && shown.contains("151 vertices"),
+        "{shown}"
+    );
     // A bake that does not use the broken plug-in runs.
     ok(&springbake(
         d,
