@@ -73,6 +73,17 @@ fn baked(dir: &Path, output: &str) {
     succeeded(&bake(dir, output, "ball"));
 }
 
+/// A temporary folder holding the corpus icosphere.
+fn with_icosphere() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        corpus_dir().join("blender/icosphere.glb"),
+        dir.path().join("icosphere.glb"),
+    )
+    .unwrap();
+    dir
+}
+
 fn column(report: &serde_json::Value, prim: &str, k: usize) -> Vec<f64> {
     report[prim]
         .as_array()
@@ -84,13 +95,8 @@ fn column(report: &serde_json::Value, prim: &str, k: usize) -> Vec<f64> {
 
 #[test]
 fn usd_core_and_blender_read_the_emitters_point_clouds() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = with_icosphere();
     let d = dir.path();
-    std::fs::copy(
-        corpus_dir().join("blender/icosphere.glb"),
-        d.join("icosphere.glb"),
-    )
-    .unwrap();
     baked(d, "fx.usda");
     let stage = d.join("fx.usda").to_string_lossy().into_owned();
     let frames = ["0", "12", "24", "47"];
@@ -144,13 +150,8 @@ fn usd_core_and_blender_read_the_emitters_point_clouds() {
 
 #[test]
 fn a_gltf_bake_writes_its_particles_beside_it_and_the_same_scene_the_same_bytes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = with_icosphere();
     let d = dir.path();
-    std::fs::copy(
-        corpus_dir().join("blender/icosphere.glb"),
-        d.join("icosphere.glb"),
-    )
-    .unwrap();
     baked(d, "fx.glb");
     let first = std::fs::read(d.join("fx.particles.usda")).unwrap();
     baked(d, "fx.glb");

@@ -40,6 +40,20 @@ fn setup() -> tempfile::TempDir {
     dir
 }
 
+/// [`setup`], plus the example plug-in `example` and the corpus icosphere.
+fn setup_with_ball(example: &str) -> tempfile::TempDir {
+    let dir = setup();
+    let d = dir.path();
+    let examples = workspace_root().join("examples/plugins");
+    std::fs::copy(examples.join(example), d.join("plugins").join(example)).unwrap();
+    std::fs::copy(
+        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    dir
+}
+
 fn run_python_client_path(script: &Path) -> String {
     let out = Command::new(springbake_testkit::venv_python())
         .arg(script)
@@ -198,18 +212,8 @@ fn an_exception_in_a_plugin_names_its_file_and_line_and_keeps_the_old_output() {
 /// axis; a field that raises stops the bake with its file and line.
 #[test]
 fn the_vortex_field_plugin_makes_a_body_orbit() {
-    let dir = setup();
+    let dir = setup_with_ball("vortex_field.py");
     let d = dir.path();
-    std::fs::copy(
-        workspace_root().join("examples/plugins/vortex_field.py"),
-        d.join("plugins/vortex_field.py"),
-    )
-    .unwrap();
-    std::fs::copy(
-        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
-        d.join("icosphere.glb"),
-    )
-    .unwrap();
     let scene = "[output]\npath = \"orbit.json\"\nframes = 49\n\n[world]\ngravity = 0.0\n\n\
                  [[body]]\nname = \"ball\"\nsource = \"icosphere.glb\"\ncells = 5\n\
                  offset = [1.0, -1.0, 0.0]\n\n[[force_field]]\nfield = \"vortex\"\n";
@@ -263,18 +267,8 @@ fn the_vortex_field_plugin_makes_a_body_orbit() {
 /// wider than tall.
 #[test]
 fn the_squash_procedure_plugin_flattens_the_ball() {
-    let dir = setup();
+    let dir = setup_with_ball("squash_procedure.py");
     let d = dir.path();
-    std::fs::copy(
-        workspace_root().join("examples/plugins/squash_procedure.py"),
-        d.join("plugins/squash_procedure.py"),
-    )
-    .unwrap();
-    std::fs::copy(
-        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
-        d.join("icosphere.glb"),
-    )
-    .unwrap();
     let scene = |squash: bool, out: &str| {
         let event = if squash {
             "[[event]]\nname = \"squash\"\nbody = \"ball\"\non = { time = 0.05 }\n\

@@ -287,10 +287,7 @@ pub fn floats_of(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
             .chunks_exact(4)
             .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64)
             .collect()),
-        "d" => Ok(data
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
-            .collect()),
+        "d" => Ok(f64_values(data)),
         other => Err(pyo3::exceptions::PyValueError::new_err(format!(
             "unexpected array format {other:?}"
         ))),
@@ -305,6 +302,18 @@ pub fn ints_of(obj: &Bound<'_, PyAny>) -> PyResult<Vec<i32>> {
         .chunks_exact(4)
         .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect())
+}
+
+/// Little-endian f64s from bytes (a trailing partial value is ignored).
+pub fn f64_values(data: &[u8]) -> Vec<f64> {
+    data.chunks_exact(8)
+        .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
+        .collect()
+}
+
+/// f64 values as little-endian bytes, for the bridge.
+pub fn f64_bytes(values: impl IntoIterator<Item = f64>) -> Vec<u8> {
+    values.into_iter().flat_map(f64::to_le_bytes).collect()
 }
 
 /// f32 values as little-endian bytes, for the bridge.

@@ -11,7 +11,9 @@
 //! caught and named by `plugin_bridge.py`. The host still writes every output atomically: an
 //! exporter plug-in writes to a temporary path it is given.
 
-use crate::python::{plugin_error, through_temp_file, with_bridge_of, Bridge};
+use crate::python::{
+    f64_bytes, f64_values, plugin_error, through_temp_file, with_bridge_of, Bridge,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_core::bake::BakedScene;
@@ -175,11 +177,18 @@ fn load(file: &Path) -> Result<Manifest, PluginError> {
     })
 }
 
-fn floats(bytes: &[u8]) -> Vec<f64> {
-    bytes
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
-        .collect()
+/// A body's node positions, velocities and masses as the bridge's f64 byte arrays.
+fn node_bytes(
+    positions: &[Vector3<f64>],
+    velocities: &[Vector3<f64>],
+    masses: &[f64],
+) -> [Vec<u8>; 3] {
+    let flat = |v: &[Vector3<f64>]| f64_bytes(v.iter().flat_map(|p| [p.x, p.y, p.z]));
+    [
+        flat(positions),
+        flat(velocities),
+        f64_bytes(masses.iter().copied()),
+    ]
 }
 
 /// An importer plug-in.
@@ -237,7 +246,7 @@ impl Importer for PythonImporter {
                     .get_item("name")
                     .and_then(|v| v.extract())
                     .map_err(to_err)?;
-                let positions = floats(&get("positions").unwrap_or_default());
+                let positions = f64_values(&get("positions").unwrap_or_default());
                 let faces: Vec<u32> = get("faces")
                     .unwrap_or_default()
                     .chunks_exact(4)
@@ -254,13 +263,13 @@ impl Importer for PythonImporter {
                         .map(|p| [p[0], p[1], p[2]])
                         .collect(),
                     normals: get("normals").map(|b| {
-                        to_f32(floats(&b), 3)
+                        to_f32(f64_values(&b), 3)
                             .into_iter()
                             .map(|n| [n[0], n[1], n[2]])
                             .collect()
                     }),
                     uvs: get("uvs").map(|b| {
-                        to_f32(floats(&b), 2)
+                        to_f32(f64_values(&b), 2)
                             .into_iter()
                             .map(|t| [t[0], t[1]])
                             .collect()
@@ -269,7 +278,7 @@ impl Importer for PythonImporter {
                     material: None,
                 };
                 let world_from_local = get("matrix")
-                    .map(|b| Matrix4::from_row_slice(&floats(&b)))
+                    .map(|b| Matrix4::from_row_slice(&f64_values(&b)))
                     .unwrap_or_else(Matrix4::identity);
                 let count = primitive.positions.len();
                 meshes.push(DisplayMesh {
@@ -446,12 +455,7 @@ impl ForceField for PythonForceField {
         time: f64,
     ) -> Result<Vec<Vector3<f64>>, String> {
         let plugin = &self.loaded;
-        let flat = |v: &[Vector3<f64>]| -> Vec<u8> {
-            v.iter()
-                .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
-                .collect()
-        };
-        let masses: Vec<u8> = masses.iter().flat_map(|m| m.to_le_bytes()).collect();
+        let [positions, velocities, masses] = node_bytes(positions, velocities, masses);
         let bytes = with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
             let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
             let out = bridge
@@ -460,8 +464,8 @@ impl ForceField for PythonForceField {
                     (
                         plugin.namespace.bind(py),
                         plugin.file.to_string_lossy().into_owned(),
-                        PyBytes::new(py, &flat(positions)),
-                        PyBytes::new(py, &flat(velocities)),
+                        PyBytes::new(py, &positions),
+                        PyBytes::new(py, &velocities),
                         PyBytes::new(py, &masses),
                         time,
                     ),
@@ -472,7 +476,7 @@ impl ForceField for PythonForceField {
                 .map_err(|e| to_err(e.into()))
         })
         .map_err(|e| e.to_string())?;
-        Ok(floats(&bytes)
+        Ok(f64_values(&bytes)
             .chunks_exact(3)
             .map(|c| Vector3::new(c[0], c[1], c[2]))
             .collect())
@@ -529,18 +533,12 @@ impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
     ) -> Result<(), String> {
         let plugin = &self.loaded;
         let range = world.bodies[body.0].nodes.clone();
-        let flat = |v: &[Vector3<f64>]| -> Vec<u8> {
-            v.iter()
-                .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
-                .collect()
-        };
         let nodes = &world.nodes;
-        let positions = flat(&nodes.position[range.clone()]);
-        let velocities = flat(&nodes.velocity[range.clone()]);
-        let masses: Vec<u8> = nodes.mass[range.clone()]
-            .iter()
-            .flat_map(|m| m.to_le_bytes())
-            .collect();
+        let [positions, velocities, masses] = node_bytes(
+            &nodes.position[range.clone()],
+            &nodes.velocity[range.clone()],
+            &nodes.mass[range.clone()],
+        );
         let time = world.time;
         let out = with_bridge_of(&PLUGIN_BRIDGE, &plugin.file, |py, bridge| {
             let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, &plugin.file);
@@ -567,7 +565,7 @@ impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
         })
         .map_err(|e| e.to_string())?;
         if let Some(bytes) = out {
-            let v = floats(&bytes);
+            let v = f64_values(&bytes);
             for (slot, c) in world.nodes.velocity[range]
                 .iter_mut()
                 .zip(v.chunks_exact(3))
