@@ -6,8 +6,10 @@
 //! - [`CacheKind::Morph`]: one morph target per baked frame on each baked mesh (POSITION and
 //!   NORMAL deltas) and one animation whose weights channels play the frames one-hot at
 //!   `i / fps`, LINEAR.
-//! - [`CacheKind::Pca`]: the fewest principal components of the displacements that keep every
-//!   vertex within the bound, as morph targets with one weights key per frame (`pca`).
+//! - [`CacheKind::Pca`]: the mesh's rigid motion as its node's translation and rotation keys,
+//!   and the fewest principal components of what is left that keep every vertex within the
+//!   bound, as morph targets (16-bit where that keeps the bound) with one weights key per
+//!   frame (`compact`, `rigid`, `pca`).
 //! - [`CacheKind::Skin`]: the lattice as a skeleton: one joint per lattice node with
 //!   translation-only keys, inverse bind matrices undoing the rest translation, 8 influences
 //!   per vertex (JOINTS_0/WEIGHTS_0 + JOINTS_1/WEIGHTS_1). The joints hang under a
@@ -22,7 +24,9 @@
 pub(crate) mod builder;
 mod static_mesh;
 pub use static_mesh::{static_glb, StaticMesh};
+mod compact;
 mod pca;
+mod rigid;
 
 use builder::{image_mime, uri_encode, DocBuilder};
 use serde_json::{json, Value};
@@ -94,11 +98,12 @@ impl Exporter for GltfExporter {
                         .map_err(err)?
                 }
                 CacheKind::Pca { max_error_um } => {
-                    let pca = Pca {
+                    let cache = compact::CompactCache {
                         max_error_m: f64::from(max_error_um) * 1e-6,
                         metres_per_unit: scene.meters_per_unit,
                     };
-                    pca.add(&mut b, node, mesh, display, bm, time_accessor, &mut anim)
+                    cache
+                        .add(&mut b, node, mesh, display, bm, time_accessor, &mut anim)
                         .map_err(err)?
                 }
             }
@@ -657,117 +662,6 @@ fn add_morph(
     let output = b.scalars(&one_hot, false);
     anim.add(times, output, node, "weights");
     Ok(())
-}
-
-/// The compact cache's settings for one export (module docs of `pca`).
-struct Pca {
-    max_error_m: f64,
-    /// The source's unit, metres.
-    metres_per_unit: f64,
-}
-
-impl Pca {
-    /// The fewest principal components within the bound as morph targets on every primitive
-    /// (POSITION, and NORMAL where the primitive has normals), one weights key per frame.
-    #[allow(clippy::too_many_arguments)]
-    fn add(
-        &self,
-        b: &mut DocBuilder,
-        node: usize,
-        mesh: usize,
-        display: &DisplayMesh,
-        bm: &BakedMesh,
-        times: usize,
-        anim: &mut Animation,
-    ) -> Result<(), String> {
-        let rest: Vec<[f32; 3]> = display
-            .primitives
-            .iter()
-            .flat_map(|p| p.positions.iter().copied())
-            .collect();
-        let delta_rows = |frames: &mut dyn Iterator<Item = Vec<[f32; 3]>>, base: &[[f32; 3]]| {
-            frames
-                .map(|frame| {
-                    frame
-                        .iter()
-                        .zip(base)
-                        .flat_map(|(a, r)| (0..3).map(move |c| f64::from(a[c] - r[c])))
-                        .collect::<Vec<f64>>()
-                })
-                .collect::<Vec<_>>()
-        };
-        let rows = delta_rows(&mut bm.frames.iter().cloned(), &rest);
-        // The bound in the mesh's local units: its node's largest scale times the file's unit.
-        let m = display.world_from_local;
-        let scale = (0..3)
-            .map(|c| m.fixed_view::<3, 1>(0, c).norm())
-            .fold(0.0, f64::max)
-            .max(f64::MIN_POSITIVE);
-        let metres_per_local = self.metres_per_unit * scale;
-        let components = pca::principal_components(&rows, self.max_error_m / metres_per_local)?;
-        // The smooth normals' change, fitted to the same weights.
-        let normal_of = |positions: &[[f32; 3]]| -> Vec<[f32; 3]> {
-            let mut out = Vec::with_capacity(positions.len());
-            let mut offset = 0;
-            for p in &display.primitives {
-                let n = p.positions.len();
-                out.extend(vertex_normals(&positions[offset..offset + n], &p.indices));
-                offset += n;
-            }
-            out
-        };
-        let rest_normals = normal_of(&rest);
-        let normal_rows = delta_rows(&mut bm.frames.iter().map(|f| normal_of(f)), &rest_normals);
-        let normal_targets = components.fit(&normal_rows);
-        // Players clamp morph weights to [0, 1] (Blender's shape-key sliders do): each
-        // component's weights are mapped onto [0, 1] and its low end moved into one "offset"
-        // target held at weight 1.
-        let cache = pca::unit_weights(components, normal_targets);
-        let k = cache.targets.len();
-        let vec3s = |t: &[f64], range: std::ops::Range<usize>| -> Vec<[f32; 3]> {
-            t[range.start * 3..range.end * 3]
-                .chunks_exact(3)
-                .map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
-                .collect()
-        };
-        let mut offset = 0;
-        for (p, dp) in display.primitives.iter().enumerate() {
-            let range = offset..offset + dp.positions.len();
-            let has_normal = has_normal(b, mesh, p);
-            let mut targets = Vec::with_capacity(k);
-            for (t, nt) in cache.targets.iter().zip(&cache.normal_targets) {
-                let mut target = json!({"POSITION": b.vec3(&vec3s(t, range.clone()), true)});
-                if has_normal {
-                    target["NORMAL"] = json!(b.vec3(&vec3s(nt, range.clone()), false));
-                }
-                targets.push(target);
-            }
-            if k > 0 {
-                b.array_mut("meshes")[mesh]["primitives"][p]["targets"] = Value::Array(targets);
-            }
-            offset = range.end;
-        }
-        let m = mesh_with_extras(b, mesh);
-        m["extras"]["springbake_cache"] = json!({
-            "kind": "pca",
-            "components": cache.components,
-            "max_error_m": cache.max_error * metres_per_local,
-            "bound_m": self.max_error_m,
-        });
-        if k == 0 {
-            return Ok(()); // the mesh does not move from its rest pose
-        }
-        m["weights"] = json!(vec![0.0; k]);
-        m["extras"]["targetNames"] = json!(cache.names);
-        let weights: Vec<f32> = cache
-            .weights
-            .iter()
-            .flat_map(|w| w.iter().map(|&x| x as f32))
-            .collect();
-        let output = b.scalars(&weights, false);
-        anim.add(times, output, node, "weights");
-        Ok(())
-    }
 }
 
 /// The lattice as a skin: joints, inverse bind matrices, 8 influences, translation keys.

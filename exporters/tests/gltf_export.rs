@@ -146,6 +146,57 @@ fn lattice_bake(mesh_index: usize, mesh: &DisplayMesh) -> BakedMesh {
     }
 }
 
+/// Every mesh tumbling (a turn of 0.4 rad a frame about a tilted axis through its centre),
+/// falling and drifting, with a small squash along its local y: rigid motion with a little
+/// deformation, as a bouncing body's bake is.
+fn tumbling_bake(scene: &ImportedScene) -> BakedScene {
+    let meshes = scene
+        .meshes
+        .iter()
+        .enumerate()
+        .map(|(mesh_index, mesh)| {
+            let rest: Vec<[f32; 3]> = mesh
+                .primitives
+                .iter()
+                .flat_map(|p| p.positions.clone())
+                .collect();
+            let centre = rest.iter().fold(Vector3::zeros(), |a, p| {
+                a + Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+            }) / rest.len() as f64;
+            let axis = nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0));
+            let frames = (0..FRAMES)
+                .map(|f| {
+                    let t = f as f64;
+                    let turn = nalgebra::UnitQuaternion::from_axis_angle(&axis, 0.4 * t);
+                    let squash = 1.0 - 0.02 * t.sin();
+                    let moved = Vector3::new(0.1 * t, -0.05 * t * t, 0.03 * t);
+                    rest.iter()
+                        .map(|p| {
+                            let mut v =
+                                Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64) - centre;
+                            v.y *= squash;
+                            let x = centre + moved + turn * v;
+                            [x.x as f32, x.y as f32, x.z as f32]
+                        })
+                        .collect()
+                })
+                .collect();
+            BakedMesh {
+                mesh_index,
+                frames,
+                lattice: None,
+            }
+        })
+        .collect();
+    BakedScene {
+        particles: Vec::new(),
+        stage: None,
+        fps: FPS,
+        frame_count: FRAMES,
+        meshes,
+    }
+}
+
 fn bake_all(scene: &ImportedScene) -> BakedScene {
     BakedScene {
         particles: Vec::new(),
@@ -216,14 +267,17 @@ fn channel_key(doc: &GltfDocument, node: usize, path: &str, f: usize) -> Option<
     Some(out[f * per..(f + 1) * per].to_vec())
 }
 
-/// World matrices of every node at key `f`, with animated translations applied.
+/// World matrices of every node at key `f`, with animated translations and rotations
+/// applied.
 fn world_matrices(doc: &GltfDocument, f: usize) -> Vec<Matrix4<f64>> {
     let nodes = doc.array("nodes");
     let mut local: Vec<Matrix4<f64>> = Vec::new();
     for (i, n) in nodes.iter().enumerate() {
         let mut n = n.clone();
-        if let Some(t) = channel_key(doc, i, "translation", f) {
-            n["translation"] = json!(t);
+        for path in ["translation", "rotation"] {
+            if let Some(key) = channel_key(doc, i, path, f) {
+                n[path] = json!(key);
+            }
         }
         local.push(local_matrix(doc, &n, "node").unwrap());
     }
@@ -431,6 +485,48 @@ fn pca_cache_plays_the_bake_within_its_bound_in_a_fraction_of_the_size() {
                 pca_size < morph_size,
                 "{name}: {pca_size} vs {morph_size} bytes"
             );
+        }
+    }
+}
+
+/// The compact cache takes a tumbling body's rigid motion out as its node's translation and
+/// rotation keys: a body that turns, falls and squashes a little needs two components at
+/// most, 16-bit ones, and the file is a fraction of one target per frame. A node with children keeps
+/// its transform (the children would move with it).
+#[test]
+fn pca_cache_plays_rigid_motion_as_node_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["icosphere.glb", "two_objects.glb"] {
+        let scene = import(&corpus(name));
+        let baked = tumbling_bake(&scene);
+        let morph = export_to(dir.path(), "m.glb", &scene, &baked, CacheKind::Morph);
+        let cache = CacheKind::Pca { max_error_um: 100 };
+        let files = export_to(dir.path(), "p.glb", &scene, &baked, cache);
+        springbake_testkit::assert_gltf_valid(&files[0].path);
+        let doc = load(&files[0].path);
+        let err = max_error(&doc, &scene, &baked);
+        assert!(err <= 1e-4, "{name}: plays {err} m off, bound 0.1 mm");
+        for bm in &baked.meshes {
+            let node = node_by_name(&doc, &scene.meshes[bm.mesh_index].name);
+            let json = &doc.array("nodes")[node];
+            let mesh = &doc.array("meshes")[get_usize(json, "mesh").unwrap()];
+            let c = &mesh["extras"]["springbake_cache"];
+            let parent = json.get("children").is_some();
+            if parent {
+                assert_eq!(c["rigid"], "none", "{name}: {c}");
+                assert!(channel_key(&doc, node, "rotation", 1).is_none());
+            } else {
+                assert_eq!(c["rigid"], "rotation and translation", "{name}: {c}");
+                assert!(c["components"].as_u64().unwrap() <= 2, "{name}: {c}");
+                assert_eq!(c["quantised"], true, "{name}: {c}");
+                assert!(channel_key(&doc, node, "rotation", 1).is_some());
+            }
+        }
+        let (pca_size, morph_size) = (files[0].bytes.len(), morph[0].bytes.len());
+        eprintln!("{name}: pca {pca_size} bytes, morph {morph_size} bytes");
+        if name == "icosphere.glb" {
+            // 10 frames: the rest mesh is most of the file (a quarter of the morph cache's)
+            assert!(pca_size * 4 < morph_size, "{pca_size} vs {morph_size}");
         }
     }
 }
@@ -728,7 +824,7 @@ fn blender_spec(file: &Path, scene: &ImportedScene, baked: &BakedScene, frames: 
 }
 
 #[test]
-fn blender_plays_morph_and_skin_caches() {
+fn blender_plays_morph_skin_and_pca_caches() {
     let dir = tempfile::tempdir().unwrap();
     let scene = import(&corpus("two_objects.glb"));
     let baked = bake_all(&scene);
@@ -737,25 +833,32 @@ fn blender_plays_morph_and_skin_caches() {
     for (name, cache) in [
         ("morph.glb", CacheKind::Morph),
         ("skin.glb", CacheKind::Skin),
+        ("pca.glb", CacheKind::Pca { max_error_um: 1000 }),
     ] {
         let files = export_to(dir.path(), name, &scene, &baked, cache);
         specs.push(blender_spec(&files[0].path, &scene, &baked, &frames));
     }
+    // A tumbling icosphere: the pca cache's rotation keys, as Blender plays them.
+    let sphere = import(&corpus("icosphere.glb"));
+    let tumbling = tumbling_bake(&sphere);
+    let cache = CacheKind::Pca { max_error_um: 1000 };
+    let files = export_to(dir.path(), "tumble.glb", &sphere, &tumbling, cache);
+    specs.push(blender_spec(&files[0].path, &sphere, &tumbling, &frames));
     let spec_path = dir.path().join("spec.json");
     std::fs::write(&spec_path, serde_json::to_vec(&json!(specs)).unwrap()).unwrap();
     let out =
         springbake_testkit::run_python_client("gltf_roundtrip.py", &[spec_path.to_str().unwrap()]);
     let report = springbake_testkit::last_json_line(&out);
     eprintln!("REPORT {report}");
-    for (file, r) in ["morph", "skin"]
-        .iter()
-        .zip(report["files"].as_array().unwrap())
-    {
+    let files = report["files"].as_array().unwrap();
+    assert_eq!(files.len(), 4, "{report}");
+    for (file, r) in ["morph", "skin", "pca", "tumble"].iter().zip(files) {
         // Measured with Blender 5.0.1: its glTF importer puts key time t at frame t·fps (not
         // t·fps + 1), so baked frame i is Blender frame i (at fps = the scene's 24). The client
         // measures both candidates; the other one is off by centimetres.
         assert_eq!(r["frame_offset"], 0, "{file}: {r}");
-        assert_eq!(r["visible_mesh_objects"], 2, "{file}: {r}");
+        let objects = if *file == "tumble" { 1 } else { 2 };
+        assert_eq!(r["visible_mesh_objects"], objects, "{file}: {r}");
         if *file == "skin" {
             // Blender turns the skinned node "Body" (it has a child) into an empty of that
             // name plus a mesh object named after the glTF mesh, "Cube".
@@ -763,7 +866,13 @@ fn blender_plays_morph_and_skin_caches() {
         }
         for o in r["objects"].as_array().unwrap() {
             let err = o["max_error"].as_f64().unwrap();
-            assert!(err <= 1e-4, "{file} {}: max error {err} m", o["name"]);
+            // the pca cache's bound is 1 mm (its 16-bit targets and rigid keys included)
+            let bound = if matches!(*file, "pca" | "tumble") {
+                1.001e-3
+            } else {
+                1e-4
+            };
+            assert!(err <= bound, "{file} {}: max error {err} m", o["name"]);
             assert_eq!(o["vertex_count"], o["expected_vertex_count"], "{file}: {o}");
             assert_eq!(o["uv_missing"], 0, "{file}: {o}");
             assert_eq!(o["materials_ok"], true, "{file}: {o}");

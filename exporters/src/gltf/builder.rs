@@ -10,6 +10,8 @@ pub const ARRAY_BUFFER: u32 = 34962;
 pub const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 
 const FLOAT: u32 = 5126;
+const SHORT: u32 = 5122;
+const BYTE: u32 = 5120;
 const UNSIGNED_BYTE: u32 = 5121;
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
@@ -121,6 +123,76 @@ impl DocBuilder {
         self.float_accessor(&flat, 3, "VEC3", None, false)
     }
 
+    /// VEC4 floats outside vertex data (rotation keys, `[x, y, z, w]`).
+    pub fn vec4_keys(&mut self, data: &[[f32; 4]]) -> usize {
+        let flat: Vec<f32> = data.iter().flatten().copied().collect();
+        self.float_accessor(&flat, 4, "VEC4", None, false)
+    }
+
+    /// A VEC3 vertex attribute as normalized signed 16-bit integers (`KHR_mesh_quantization`,
+    /// which this requires of the document): each value `round(x · 32767)`, an element padded
+    /// to 8 bytes (vertex data is 4-byte aligned); `min_max` in those integers. `None` when a
+    /// value is outside [−1, 1] or not finite.
+    pub fn vec3_snorm16(&mut self, data: &[[f32; 3]], min_max: bool) -> Option<usize> {
+        if !data.iter().flatten().all(|x| x.abs() <= 1.0) {
+            return None;
+        }
+        let ints: Vec<[i16; 3]> = data.iter().map(|v| v.map(snorm16)).collect();
+        let bytes: Vec<u8> = ints
+            .iter()
+            .flat_map(|v| [v[0], v[1], v[2], 0])
+            .flat_map(i16::to_le_bytes)
+            .collect();
+        let view = self.view(&bytes, Some(ARRAY_BUFFER));
+        self.array_mut("bufferViews")[view]["byteStride"] = json!(8);
+        let mut a = json!({"bufferView": view, "componentType": SHORT, "normalized": true,
+                           "count": data.len(), "type": "VEC3"});
+        if min_max {
+            let lo: Vec<Value> = (0..3)
+                .map(|c| json!(ints.iter().map(|v| v[c]).min().unwrap_or(0)))
+                .collect();
+            let hi: Vec<Value> = (0..3)
+                .map(|c| json!(ints.iter().map(|v| v[c]).max().unwrap_or(0)))
+                .collect();
+            a["min"] = Value::Array(lo);
+            a["max"] = Value::Array(hi);
+        }
+        self.require_extension("KHR_mesh_quantization");
+        Some(self.push("accessors", a))
+    }
+
+    /// A VEC3 vertex attribute (a normal or a normal's change) as normalized signed bytes
+    /// (`KHR_mesh_quantization`): `round(x · 127)`, an element padded to 4 bytes. `None` when
+    /// a value is outside [−1, 1] or not finite.
+    pub fn vec3_snorm8(&mut self, data: &[[f32; 3]]) -> Option<usize> {
+        if !data.iter().flatten().all(|x| x.abs() <= 1.0) {
+            return None;
+        }
+        let bytes: Vec<u8> = data
+            .iter()
+            .flat_map(|v| [snorm8(v[0]), snorm8(v[1]), snorm8(v[2]), 0])
+            .map(|i| i as u8)
+            .collect();
+        let view = self.view(&bytes, Some(ARRAY_BUFFER));
+        self.array_mut("bufferViews")[view]["byteStride"] = json!(4);
+        self.require_extension("KHR_mesh_quantization");
+        Some(self.push(
+            "accessors",
+            json!({"bufferView": view, "componentType": BYTE, "normalized": true,
+                   "count": data.len(), "type": "VEC3"}),
+        ))
+    }
+
+    /// Name `extension` in `extensionsUsed` and `extensionsRequired` (once).
+    pub fn require_extension(&mut self, extension: &str) {
+        for key in ["extensionsUsed", "extensionsRequired"] {
+            let list = self.array_mut(key);
+            if !list.iter().any(|e| e == extension) {
+                list.push(json!(extension));
+            }
+        }
+    }
+
     /// MAT4 floats (inverse bind matrices), each column-major.
     pub fn mat4(&mut self, data: &[[f32; 16]]) -> usize {
         let flat: Vec<f32> = data.iter().flatten().copied().collect();
@@ -211,6 +283,21 @@ impl DocBuilder {
         text.push(b'\n');
         (text, self.bin)
     }
+}
+
+/// `x` in [−1, 1] as a normalized signed 16-bit integer.
+pub fn snorm16(x: f32) -> i16 {
+    (x.clamp(-1.0, 1.0) * 32767.0).round() as i16
+}
+
+/// `x` in [−1, 1] as a normalized signed byte.
+pub fn snorm8(x: f32) -> i8 {
+    (x.clamp(-1.0, 1.0) * 127.0).round() as i8
+}
+
+/// What a player reads back from [`snorm16`]: `max(i / 32767, −1)`.
+pub fn from_snorm16(i: i16) -> f32 {
+    (f32::from(i) / 32767.0).max(-1.0)
 }
 
 /// Percent-encode a file name for use as a relative URI.

@@ -109,9 +109,18 @@ fn project(basis: &[Vec<f64>], rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Eigen-order candidates past the components already kept that each step weighs.
+const WINDOW: usize = 16;
+
 /// The fewest components of `rows` (frames × 3·vertices) whose reconstruction leaves no
 /// vertex farther than `bound` from its row, or all that carry any variance (at most
 /// [`MAX_COMPONENTS`]) when none do.
+///
+/// The components are the Gram matrix's eigenvectors; each step keeps the one, among the
+/// next [`WINDOW`] by variance, that most lowers the largest vertex error (weighed where the
+/// error is near its largest; the kept set's true error is measured over every vertex). Variance order
+/// alone minimises the mean error and can spend several components before the one that
+/// moves the worst vertex (a rubber Suzanne: 20 components against 17 for 1 mm).
 pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components, String> {
     let frames = rows.len();
     if frames > MAX_FRAMES {
@@ -139,6 +148,11 @@ pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components,
         .first()
         .map_or(0.0, |&i| eigen.eigenvalues[i])
         .max(0.0);
+    // Components with no variance left (to rounding) add nothing.
+    order.retain(|&i| eigen.eigenvalues[i] > largest * 1e-24);
+    // Per candidate: its frame vector and target once computed; `kept` once chosen.
+    let mut candidates: Vec<Option<(Vec<f64>, Vec<f64>)>> = vec![None; order.len()];
+    let mut kept = vec![false; order.len()];
     let mut residual: Vec<Vec<f64>> = rows.to_vec();
     let mut components = Components {
         weights: vec![Vec::new(); frames],
@@ -146,16 +160,50 @@ pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components,
         basis: Vec::new(),
         max_error: max_vertex_error(&residual),
     };
-    for &i in &order {
-        if components.max_error <= bound || components.targets.len() == MAX_COMPONENTS {
-            break;
+    while components.max_error > bound && components.targets.len() < MAX_COMPONENTS {
+        let hot = worst_vertices(&residual, components.max_error);
+        let window = (components.targets.len() + WINDOW).min(order.len());
+        let mut best: Option<(usize, f64)> = None;
+        for (c, &i) in order[..window].iter().enumerate() {
+            if kept[c] {
+                continue;
+            }
+            let slot = &mut candidates[c];
+            if slot.is_none() {
+                let u: Vec<f64> = eigen.eigenvectors.column(i).iter().copied().collect();
+                let target = project(std::slice::from_ref(&u), rows).remove(0);
+                *slot = Some((u, target));
+            }
+            let Some((u, target)) = slot.as_ref() else {
+                continue;
+            };
+            let error = error_without(&residual, &hot, u, target);
+            if best.is_none_or(|(_, e)| error < e) {
+                best = Some((c, error));
+            }
         }
-        // Components with no variance left (to rounding) add nothing.
-        if eigen.eigenvalues[i] <= largest * 1e-24 {
-            break;
+        let Some((mut c, error)) = best else {
+            break; // every component kept
+        };
+        // No single component lowers the worst errors (they need several together): take the
+        // next by variance.
+        if error >= components.max_error * STALL {
+            c = kept.iter().position(|k| !k).unwrap_or(c);
+            if candidates[c].is_none() {
+                let u: Vec<f64> = eigen
+                    .eigenvectors
+                    .column(order[c])
+                    .iter()
+                    .copied()
+                    .collect();
+                let target = project(std::slice::from_ref(&u), rows).remove(0);
+                candidates[c] = Some((u, target));
+            }
         }
-        let u: Vec<f64> = eigen.eigenvectors.column(i).iter().copied().collect();
-        let target = project(std::slice::from_ref(&u), rows).remove(0);
+        let Some((u, target)) = candidates[c].take() else {
+            break;
+        };
+        kept[c] = true;
         for (f, row) in residual.iter_mut().enumerate() {
             for (r, &t) in row.iter_mut().zip(&target) {
                 *r -= u[f] * t;
@@ -167,6 +215,47 @@ pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components,
         components.max_error = max_vertex_error(&residual);
     }
     Ok(components)
+}
+
+/// The (frame, vertex) pairs whose error is within [`HOT`] of the largest, the [`MAX_HOT`]
+/// largest of them: where the next component's effect on the largest error is weighed.
+fn worst_vertices(residual: &[Vec<f64>], largest: f64) -> Vec<(usize, usize)> {
+    let floor = (HOT * largest).powi(2);
+    let mut hot: Vec<(f64, usize, usize)> = Vec::new();
+    for (f, row) in residual.iter().enumerate() {
+        for (v, r) in row.chunks_exact(3).enumerate() {
+            let e = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            if e >= floor {
+                hot.push((e, f, v));
+            }
+        }
+    }
+    if hot.len() > MAX_HOT {
+        hot.select_nth_unstable_by(MAX_HOT, |a, b| {
+            b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
+        });
+        hot.truncate(MAX_HOT);
+    }
+    hot.into_iter().map(|(_, f, v)| (f, v)).collect()
+}
+
+/// A step whose best component leaves the largest error above this fraction of it stalls.
+const STALL: f64 = 0.99;
+
+/// Errors this close to the largest are weighed when choosing the next component.
+const HOT: f64 = 0.7;
+/// Most (frame, vertex) pairs weighed.
+const MAX_HOT: usize = 8_192;
+
+/// Largest vertex error among `hot` left when `u ⊗ target` is taken from `residual` too.
+fn error_without(residual: &[Vec<f64>], hot: &[(usize, usize)], u: &[f64], target: &[f64]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for &(f, v) in hot {
+        let (r, t) = (&residual[f][3 * v..3 * v + 3], &target[3 * v..3 * v + 3]);
+        let d = [r[0] - u[f] * t[0], r[1] - u[f] * t[1], r[2] - u[f] * t[2]];
+        worst = worst.max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    }
+    worst.sqrt()
 }
 
 /// Largest length of a vertex's 3 values in any row.
