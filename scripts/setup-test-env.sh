@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the test clients springbake's tests use into ignored folders of this checkout:
-#   .venv/         Python venv with bpy (Blender as a module), usd-core, alembic3d and ray
+#   .venv/         Python venv with bpy (Blender as a module), usd-core, alembic3d, ray, maturin
+#                  and springbake's own Python package (python/, scripts/build-python-package.sh)
 #   node_modules/  the Khronos gltf-validator, three.js and playwright-core (the VAT player test)
 #   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test and
 #   Chromium for the VAT player test
@@ -26,6 +27,10 @@ fi
 if ! .venv/bin/python -c 'import alembic3d' 2>/dev/null; then
   echo "setup: installing alembic3d (PyAlembic) into .venv (Alembic export)"
   .venv/bin/pip install --quiet --disable-pip-version-check "alembic3d==1.8.12.1"
+fi
+if ! .venv/bin/python -c 'import maturin' 2>/dev/null; then
+  echo "setup: installing maturin into .venv (builds springbake's Python package)"
+  .venv/bin/pip install --quiet --disable-pip-version-check "maturin==1.16.0"
 fi
 if ! .venv/bin/python -c 'import bpy' 2>/dev/null; then
   echo "setup: installing bpy==$BPY_VERSION into .venv (about 820 MB)"
@@ -56,4 +61,5 @@ if [ ! -f node_modules/gltf-validator/package.json ] || [ ! -f node_modules/thre
   echo "setup: installing gltf-validator, three and playwright-core into node_modules"
   npm ci --no-audit --no-fund --silent >/dev/null
 fi
+scripts/build-python-package.sh
 echo "setup: test clients ready (.venv, node_modules)"

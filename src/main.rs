@@ -133,7 +133,8 @@ enum Command {
         #[arg(long)]
         no_plugins: bool,
     },
-    /// Bake, then re-bake whenever the scene file or any source it names changes.
+    /// Bake, then re-bake whenever the scene file, any source it names or one of its Python
+    /// plug-ins changes (plug-ins are loaded again for every bake).
     Watch {
         /// A scene file (.toml) or a mesh.
         input: PathBuf,
@@ -143,6 +144,9 @@ enum Command {
         /// One JSON object per event instead of a line for people.
         #[arg(long)]
         json: bool,
+        /// Do not load Python plug-ins.
+        #[arg(long)]
+        no_plugins: bool,
     },
     /// Open the interactive viewer, or render a screenshot, flipbook or contact sheet offscreen.
     ///
@@ -292,7 +296,8 @@ fn run(command: Command) -> Result<(), Failure> {
             input,
             output,
             json,
-        } => watch(input, output, json),
+            no_plugins,
+        } => watch(input, output, json, !no_plugins),
         Command::View(args) => view::run(args),
     }
 }
@@ -378,29 +383,7 @@ fn is_scene(path: &Path) -> bool {
 }
 
 fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene, Failure> {
-    if !input.exists() {
-        return Err(usage(format!("{}: no such file", input.display())));
-    }
-    if is_scene(input) {
-        let mut loaded = springbake_pipeline::load_scene(input)?;
-        if let Some(o) = &overrides.output {
-            loaded.scene.output.path = std::env::current_dir()
-                .map(|d| d.join(o))
-                .unwrap_or_else(|_| o.clone());
-        }
-        if let Some(n) = overrides.frames {
-            loaded.scene.output.frames = n;
-        }
-        if let Some(f) = overrides.fps {
-            loaded.scene.output.fps = f;
-        }
-        springbake_pipeline::validate_scene(&loaded.scene).map_err(usage)?;
-        Ok(loaded)
-    } else {
-        let loaded = springbake_pipeline::default_scene_for_mesh(input, overrides);
-        springbake_pipeline::validate_scene(&loaded.scene).map_err(usage)?;
-        Ok(loaded)
-    }
+    Ok(springbake_pipeline::load_input(input, overrides)?)
 }
 
 /// Refuses a `--report` path that would replace the bake's output or an input, or that cannot
@@ -536,70 +519,17 @@ fn run_bake(
 }
 
 fn inspect(file: &Path, cells: u32, json: bool) -> Result<(), Failure> {
-    use springbake_core::lattice::{fit_lattice, FitSettings, Resolution};
     let (registry, _) = springbake_pipeline::registry_with_plugins(file.parent(), true);
-    let importer = registry.importer_for(file).ok_or_else(|| {
-        usage(format!(
-            "{}: no importer for this extension; springbake reads {}",
-            file.display(),
-            registry.import_extensions().join(", ")
-        ))
-    })?;
-    let bytes = springbake_pipeline::source::read_source(file)
-        .map_err(|e| usage(format!("{}: {e}", file.display())))?;
-    let scene = importer
-        .import(file, &bytes, &Default::default())
-        .map_err(|e| Failure::from(PipelineError::from(e)))?;
-    let mut meshes = Vec::new();
-    for m in &scene.meshes {
-        let points: Vec<_> = m
-            .world_positions()
-            .iter()
-            .map(|p| p * scene.meters_per_unit)
-            .collect();
-        let (lo, hi) = points.iter().fold(
-            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
-            |(lo, hi), p| {
-                (
-                    [lo[0].min(p.x), lo[1].min(p.y), lo[2].min(p.z)],
-                    [hi[0].max(p.x), hi[1].max(p.y), hi[2].max(p.z)],
-                )
-            },
-        );
-        let settings = FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            up_index: scene.up_axis.index(),
-            ..FitSettings::default()
-        };
-        let lattice = fit_lattice(&points, &m.triangles(), &settings)
-            .map_err(|e| usage(format!("{}: mesh \"{}\": {e}", file.display(), m.name)))?;
-        meshes.push(serde_json::json!({
-            "name": m.name,
-            "vertices": m.vertex_count(),
-            "triangles": m.triangle_count(),
-            "primitives": m.primitives.len(),
-            "materials": m.primitives.iter().filter_map(|p| p.material.clone()).collect::<Vec<_>>(),
-            "bounds_m": { "min": lo, "max": hi },
-            "lattice": { "cells": lattice.cell_count(), "nodes": lattice.node_count(), "springs": lattice.springs.len(),
-                          "islands": lattice.island_count, "cell_size_m": lattice.cell_size, "dims": lattice.dims },
-        }));
-    }
-    let doc = serde_json::json!({
-        "file": file.display().to_string(),
-        "format": importer.name(),
-        "up_axis": format!("{:?}", scene.up_axis),
-        "meters_per_unit": scene.meters_per_unit,
-        "meshes": meshes,
-    });
+    let doc = springbake_pipeline::inspect::describe(&registry, file, cells)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
     } else {
         println!(
-            "{} ({}, {:?}-up, {} m per unit)",
+            "{} ({}, {}-up, {} m per unit)",
             file.display(),
-            importer.name(),
-            scene.up_axis,
-            scene.meters_per_unit
+            doc["format"].as_str().unwrap_or(""),
+            doc["up_axis"].as_str().unwrap_or(""),
+            doc["meters_per_unit"]
         );
         for m in doc["meshes"].as_array().into_iter().flatten() {
             println!(
@@ -620,13 +550,16 @@ fn inspect(file: &Path, cells: u32, json: bool) -> Result<(), Failure> {
     Ok(())
 }
 
-fn watch(input: PathBuf, output: Option<PathBuf>, json: bool) -> Result<(), Failure> {
+fn watch(
+    input: PathBuf,
+    output: Option<PathBuf>,
+    json: bool,
+    plugins: bool,
+) -> Result<(), Failure> {
     use springbake_watcher::{install_ctrlc, CancelToken, WatchOptions, Watcher};
     if !input.exists() {
         return Err(usage(format!("{}: no such file", input.display())));
     }
-    // Plug-ins beside the input load once, when watching starts.
-    let (registry, _) = springbake_pipeline::registry_with_plugins(input.parent(), true);
     let bake_input = if is_scene(&input) {
         BakeInput::Scene(input)
     } else {
@@ -644,8 +577,8 @@ fn watch(input: PathBuf, output: Option<PathBuf>, json: bool) -> Result<(), Fail
         message: e.to_string(),
     })?;
     let job = BakeJob {
-        registry,
         input: bake_input,
+        plugins,
     };
     Watcher::new(job, WatchOptions::default())
         .run_until(&stop, |event| {

@@ -16,6 +16,7 @@ mod colliders;
 mod effects;
 pub mod events;
 mod frame;
+pub mod inspect;
 mod models;
 pub mod outputs;
 mod report;
@@ -66,7 +67,8 @@ pub struct FoundPlugins {
 }
 
 /// [`default_registry`] plus the Python plug-ins discovered for a scene in `scene_dir`
-/// (`plugins/` beside it, `$SPRINGBAKE_PLUGIN_PATH`, the user's config folder), unless
+/// (`plugins/` beside it, `$SPRINGBAKE_PLUGIN_PATH`, the user's config folder, the
+/// `springbake.plugins` entry points of installed packages), unless
 /// `enabled` is false (`--no-plugins`). A built-in format keeps its extensions.
 pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Registry, FoundPlugins) {
     use springbake_core::plugin::{Exporter, Importer};
@@ -76,9 +78,6 @@ pub fn registry_with_plugins(scene_dir: Option<&Path>, enabled: bool) -> (Regist
         return (registry, found);
     }
     let folders = springbake_usd::python_plugins::plugin_folders(scene_dir);
-    if folders.is_empty() {
-        return (registry, found);
-    }
     let discovered = springbake_usd::python_plugins::discover(&folders);
     let mut note = |kind: &'static str, name: &str, extensions: &[&str], file: &Path| {
         found.loaded.push(FoundPlugin {
@@ -231,7 +230,54 @@ pub fn load_scene(path: &Path) -> Result<LoadedScene, PipelineError> {
         path: path.to_path_buf(),
         message: format!("cannot read the scene file: {e}"),
     })?;
-    let scene = SceneFile::parse(&text).map_err(|e| PipelineError::Scene {
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    scene_from_text(&text, path, &base_dir)
+}
+
+/// What `springbake bake INPUT` bakes: a scene file (`.toml`) with the command line's
+/// `output`, `frames` and `fps` over its own (an output relative to the working folder), or
+/// a bare mesh in the default scene ([`default_scene_for_mesh`]).
+pub fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene, PipelineError> {
+    if !input.exists() {
+        return Err(PipelineError::Usage(format!(
+            "{}: no such file",
+            input.display()
+        )));
+    }
+    let is_scene = input
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let loaded = if is_scene {
+        let mut loaded = load_scene(input)?;
+        if let Some(o) = &overrides.output {
+            loaded.scene.output.path = std::env::current_dir()
+                .map(|d| d.join(o))
+                .unwrap_or_else(|_| o.clone());
+        }
+        if let Some(n) = overrides.frames {
+            loaded.scene.output.frames = n;
+        }
+        if let Some(f) = overrides.fps {
+            loaded.scene.output.fps = f;
+        }
+        loaded
+    } else {
+        default_scene_for_mesh(input, overrides)
+    };
+    validate_scene(&loaded.scene).map_err(PipelineError::Usage)?;
+    Ok(loaded)
+}
+
+/// A scene from its TOML `text`, named `path` in errors, its relative paths resolved (and
+/// its reads contained) in `base_dir`: a scene file's text, or one a host built (the Python
+/// package's dict).
+pub fn scene_from_text(
+    text: &str,
+    path: &Path,
+    base_dir: &Path,
+) -> Result<LoadedScene, PipelineError> {
+    let scene = SceneFile::parse(text).map_err(|e| PipelineError::Scene {
         path: path.to_path_buf(),
         message: e.message,
     })?;
@@ -241,11 +287,10 @@ pub fn load_scene(path: &Path) -> Result<LoadedScene, PipelineError> {
             path: path.to_path_buf(),
             message,
         })?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     Ok(LoadedScene {
         scene,
         scene_path: Some(path.to_path_buf()),
-        base_dir,
+        base_dir: base_dir.to_path_buf(),
     })
 }
 
@@ -486,11 +531,25 @@ pub struct BakeHooks<'a> {
     pub note: Option<&'a mut dyn FnMut(&str)>,
 }
 
-/// The outcome of a bake: the report and the files written.
+/// The outcome of a bake: the report, the files written and the baked frames.
 #[derive(Debug, Clone)]
 pub struct BakeOutcome {
     pub report: Report,
     pub outputs: Vec<PathBuf>,
+    /// Every baked mesh's vertices per frame (the exported scene's local coordinates).
+    pub baked: springbake_core::bake::BakedScene,
+    /// Each mesh of the exported scene (`baked.meshes[i].mesh_index` indexes them).
+    pub export_meshes: Vec<ExportMesh>,
+    /// The exported scene's unit (metres per unit of its coordinates).
+    pub meters_per_unit: f64,
+}
+
+/// A mesh of the exported scene: its name and where its local coordinates (the baked
+/// frames') sit in the scene.
+#[derive(Debug, Clone)]
+pub struct ExportMesh {
+    pub name: String,
+    pub world_from_local: springbake_core::nalgebra::Matrix4<f64>,
 }
 
 /// Import, fit, simulate, export and write. Nothing is written unless every stage succeeded.
@@ -543,5 +602,16 @@ pub fn bake(
             seconds,
         },
         outputs: files.into_iter().map(|f| f.path).collect(),
+        export_meshes: prepared
+            .export_scene
+            .meshes
+            .iter()
+            .map(|m| ExportMesh {
+                name: m.name.clone(),
+                world_from_local: m.world_from_local,
+            })
+            .collect(),
+        meters_per_unit: prepared.export_scene.meters_per_unit,
+        baked,
     })
 }
