@@ -310,3 +310,78 @@ fn the_squash_procedure_plugin_flattens_the_ball() {
         "widest/tallest: {squashed} with the squash, {plain} without"
     );
 }
+
+/// Issue 22 item 1: plug-ins of installed packages, found through their `springbake.plugins`
+/// entry points. The package here is installed as pip would lay it out (a module and its
+/// `*.dist-info` with `entry_points.txt`) in a folder on `$PYTHONPATH`; one of its entry
+/// points names a module that raises on import.
+#[test]
+fn installed_packages_add_plugins_through_their_entry_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let site = d.join("site");
+    let info = site.join("sbk_cache-1.0.dist-info");
+    std::fs::create_dir_all(&info).unwrap();
+    std::fs::write(
+        info.join("METADATA"),
+        "Metadata-Version: 2.1\nName: sbk-cache\nVersion: 1.0\n",
+    )
+    .unwrap();
+    std::fs::write(
+        info.join("entry_points.txt"),
+        "[springbake.plugins]\njson_cache = sbk_cache_plugin\nbroken = sbk_broken\n",
+    )
+    .unwrap();
+    std::fs::copy(
+        workspace_root().join("examples/plugins/json_cache_exporter.py"),
+        site.join("sbk_cache_plugin.py"),
+    )
+    .unwrap();
+    std::fs::write(
+        site.join("sbk_broken.py"),
+        "import os\n\nraise RuntimeError('not configured')\n",
+    )
+    .unwrap();
+    std::fs::copy(
+        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_springbake"))
+            .args(args)
+            .current_dir(d)
+            .env("PYTHONPATH", &site)
+            .env("XDG_CONFIG_HOME", d.join("no-config"))
+            .output()
+            .unwrap()
+    };
+    let listing = ok(&run(&["plugins"]));
+    let module = site.join("sbk_cache_plugin.py");
+    assert!(
+        listing.contains("jsoncache") && listing.contains(module.to_str().unwrap()),
+        "{listing}"
+    );
+    assert!(
+        listing.contains("not loaded")
+            && listing.contains("entry point broken = sbk_broken")
+            && listing.contains("sbk_broken.py, line 3")
+            && listing.contains("not configured"),
+        "{listing}"
+    );
+    ok(&run(&[
+        "bake",
+        "icosphere.glb",
+        "-o",
+        "cache.json",
+        "--frames",
+        "4",
+        "--progress",
+        "quiet",
+    ]));
+    let cache: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("cache.json")).unwrap()).unwrap();
+    assert!(cache.to_string().contains("Icosphere"), "{cache}");
+    let off = ok(&run(&["plugins", "--no-plugins"]));
+    assert!(!off.contains("jsoncache"), "{off}");
+}

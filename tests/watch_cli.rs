@@ -130,3 +130,48 @@ fn watch_rebakes_on_edits_survives_a_broken_scene_and_stops_cleanly() {
     names.sort();
     assert_eq!(names, ["cube.obj", "out.glb", "scene.toml"]);
 }
+
+/// Issue 22 item 4: an edited plug-in is reloaded. The scene's output format comes from an
+/// exporter plug-in in `plugins/` beside it; saving the plug-in with another marker re-bakes
+/// and the new output carries the new marker.
+#[test]
+fn watch_reloads_an_edited_plugin() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("cube.obj");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
+        &source,
+    )
+    .unwrap();
+    let plugin = |mark: &str| {
+        format!(
+            "import json\n\nSPRINGBAKE_PLUGIN = {{'kind': 'exporter', 'name': 'marker', 'extensions': ['mark']}}\n\
+             MARK = {mark:?}\n\n\ndef export(baked, path):\n    with open(path, 'w') as f:\n        \
+             json.dump({{'mark': MARK, 'meshes': len(baked['meshes'])}}, f)\n"
+        )
+    };
+    std::fs::create_dir(dir.path().join("plugins")).unwrap();
+    let plugin_file = dir.path().join("plugins/marker.py");
+    std::fs::write(&plugin_file, plugin("first")).unwrap();
+    let scene = dir.path().join("scene.toml");
+    let text = scene_text(&source, 3).replace("out.glb", "out.mark");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.path().join("out.mark");
+    let mark = || -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
+    };
+    let (mut child, rx) = start(&scene);
+    let first = next_event(&rx, &["finished", "failed"]);
+    assert_eq!(first["event"], "finished", "{first}");
+    assert_eq!(mark()["mark"], "first");
+    // Saved through a temporary file, as editors do.
+    let tmp = dir.path().join("plugins/.marker.py.swp");
+    std::fs::write(&tmp, plugin("second")).unwrap();
+    std::fs::rename(&tmp, &plugin_file).unwrap();
+    let second = next_event(&rx, &["finished", "failed"]);
+    assert_eq!(second["event"], "finished", "{second}");
+    assert_eq!(mark()["mark"], "second");
+    assert_eq!(mark()["meshes"], 1);
+    child.kill().unwrap();
+    child.wait().unwrap();
+}

@@ -38,7 +38,7 @@ def _raised(error, path, doing):
 
 
 def load_plugin(path):
-    """Runs the file as a module; returns (module, kind, name, extensions)."""
+    """Runs the file as a module; returns (namespace, kind, name, extensions)."""
     with open(path, "r", encoding="utf-8") as f:
         source = f.read()
     namespace = {"__file__": path, "__name__": "springbake_plugin_" + os.path.basename(path)[:-3]}
@@ -46,6 +46,45 @@ def load_plugin(path):
         exec(compile(source, path, "exec"), namespace)
     except BaseException as e:  # a plug-in must never take the host down
         raise _raised(e, path, "loading")
+    return (namespace,) + _manifest(namespace)
+
+
+def entry_points(folders):
+    """The `springbake.plugins` entry points of the installed packages, as sorted
+    (name, value) pairs (importlib.metadata reads every *.dist-info on sys.path, to which
+    the host's package `folders` are added: the venv's, $PYTHONPATH's)."""
+    import sys
+    from importlib.metadata import entry_points as installed
+
+    for folder in folders:
+        if folder not in sys.path:
+            sys.path.append(folder)
+    return sorted((ep.name, ep.value) for ep in installed(group="springbake.plugins"))
+
+
+def load_entry_point(name, value):
+    """Imports an entry point's module (`package.module`); returns (namespace, kind, name,
+    extensions, file) like load_plugin, the module's own dict as the namespace."""
+    import importlib
+
+    module_name = value.split(":")[0].strip()
+    try:
+        module = importlib.import_module(module_name)
+    except BaseException as e:
+        where = None
+        for frame in traceback.extract_tb(e.__traceback__):
+            where = "%s, line %s" % (frame.filename, frame.lineno)
+        raise BridgeError(
+            "the module raised %s while importing: %s" % (type(e).__name__, e),
+            where,
+        )
+    namespace = vars(module)
+    path = getattr(module, "__file__", None) or module_name
+    return (namespace,) + _manifest(namespace) + (path,)
+
+
+def _manifest(namespace):
+    """(kind, name, extensions) of a plug-in's SPRINGBAKE_PLUGIN dict, checked."""
     info = namespace.get("SPRINGBAKE_PLUGIN")
     if not isinstance(info, dict):
         raise BridgeError("defines no SPRINGBAKE_PLUGIN dict (kind, name, extensions)")
@@ -64,7 +103,7 @@ def load_plugin(path):
              "procedure": "run"}[kind]
     if not callable(namespace.get(entry)):
         raise BridgeError("a %s plug-in must define %s()" % (kind, entry))
-    return namespace, kind, name, [e.lower() for e in extensions]
+    return kind, name, [e.lower() for e in extensions]
 
 
 def _array(value, what, width, dtype, location):

@@ -70,20 +70,7 @@ pub fn find_venv(
     python_version: (u8, u8),
 ) -> VenvSearch {
     let mut tried = Vec::new();
-    let candidates: Vec<PathBuf> = match explicit {
-        Some(dir) => vec![dir.to_path_buf()],
-        None => {
-            let mut c = Vec::new();
-            if let Some(cwd) = cwd {
-                c.extend(cwd.ancestors().map(|d| d.join(".venv")));
-            }
-            if let Some(exe) = exe {
-                c.extend(exe.ancestors().skip(1).map(|d| d.join(".venv")));
-            }
-            c
-        }
-    };
-    for venv in candidates {
+    for venv in venv_candidates(explicit, cwd, exe) {
         if tried.contains(&venv) {
             continue;
         }
@@ -102,6 +89,52 @@ pub fn find_venv(
         site_packages: None,
         tried,
     }
+}
+
+/// The venvs [`find_venv`] looks at, in order.
+fn venv_candidates(
+    explicit: Option<&Path>,
+    cwd: Option<&Path>,
+    exe: Option<&Path>,
+) -> Vec<PathBuf> {
+    match explicit {
+        Some(dir) => vec![dir.to_path_buf()],
+        None => {
+            let mut c = Vec::new();
+            if let Some(cwd) = cwd {
+                c.extend(cwd.ancestors().map(|d| d.join(".venv")));
+            }
+            if let Some(exe) = exe {
+                c.extend(exe.ancestors().skip(1).map(|d| d.join(".venv")));
+            }
+            c
+        }
+    }
+}
+
+/// Every `lib/python*/site-packages` of the venvs the search would look at, and the folders
+/// of `$PYTHONPATH`: where installed packages may be found, known without starting Python.
+pub fn package_folders() -> Vec<PathBuf> {
+    let explicit = std::env::var_os(VENV_ENV).map(PathBuf::from);
+    let cwd = std::env::current_dir().ok();
+    let exe = std::env::current_exe().ok();
+    let mut folders = Vec::new();
+    for venv in venv_candidates(explicit.as_deref(), cwd.as_deref(), exe.as_deref()) {
+        let Ok(lib) = std::fs::read_dir(venv.join("lib")) else {
+            continue;
+        };
+        let mut found: Vec<PathBuf> = lib
+            .flatten()
+            .map(|e| e.path().join("site-packages"))
+            .filter(|p| p.is_dir())
+            .collect();
+        found.sort();
+        folders.extend(found);
+    }
+    if let Some(paths) = std::env::var_os("PYTHONPATH") {
+        folders.extend(std::env::split_paths(&paths).filter(|p| p.is_dir()));
+    }
+    folders
 }
 
 /// The message for a missing usd-core: what was searched and how to install it.

@@ -2,9 +2,10 @@
 //! file each, loaded into the embedded interpreter without rebuilding springbake
 //! (docs/plugins.md has the API).
 //!
-//! Discovery ([`plugin_folders`]), in order: `plugins/` beside the scene file, each folder of
-//! `$SPRINGBAKE_PLUGIN_PATH`, then the user's `$XDG_CONFIG_HOME/springbake/plugins`
-//! (`~/.config/springbake/plugins`). A file that fails to load is kept in
+//! Discovery ([`plugin_folders`], [`discover`]), in order: `plugins/` beside the scene file,
+//! each folder of `$SPRINGBAKE_PLUGIN_PATH`, the user's `$XDG_CONFIG_HOME/springbake/plugins`
+//! (`~/.config/springbake/plugins`), then the `springbake.plugins` entry points of the Python
+//! packages installed where the interpreter looks (a module each, named by the entry point). A file that fails to load is kept in
 //! [`Discovered::failed`] with its error (file and line); the others still register, so bakes
 //! that do not use the broken one run. Exceptions inside a plug-in become [`PluginError`]s
 //! naming the plug-in's file and line (exit code 2), never a crash; wrong return shapes are
@@ -60,6 +61,28 @@ pub fn plugin_folders(scene_dir: Option<&Path>) -> Vec<PathBuf> {
     folders
 }
 
+/// The `*.py` files of the plug-in folders for a scene in `scene_dir` (what `watch` watches
+/// to reload an edited plug-in; installed packages' entry points are not reloaded).
+pub fn plugin_files(scene_dir: Option<&Path>) -> Vec<PathBuf> {
+    plugin_folders(scene_dir)
+        .iter()
+        .flat_map(|f| python_files(f))
+        .collect()
+}
+
+/// The `*.py` files of `folder`, sorted by name.
+fn python_files(folder: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "py") && p.is_file())
+        .collect();
+    files.sort();
+    files
+}
+
 /// One loaded plug-in file.
 #[derive(Debug)]
 struct Loaded {
@@ -83,64 +106,118 @@ pub struct Discovered {
     pub failed: Vec<(PathBuf, String)>,
 }
 
-/// Loads every `*.py` file of `folders` (sorted by name within a folder).
+/// Loads every `*.py` file of `folders` (sorted by name within a folder), then the
+/// `springbake.plugins` entry points of the installed Python packages (sorted by name).
 pub fn discover(folders: &[PathBuf]) -> Discovered {
     let mut found = Discovered::default();
     for folder in folders {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
-            .into_iter()
-            .flatten()
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|e| e == "py") && p.is_file())
-            .collect();
-        files.sort();
-        for file in files {
-            match load(&file) {
-                Ok((loaded, kind, name, extensions)) => {
-                    let extensions = extensions.into_iter().map(|e| &*String::leak(e)).collect();
-                    let loaded = Arc::new(loaded);
-                    if kind == "importer" {
-                        found.importers.push(PythonImporter {
-                            name,
-                            extensions,
-                            loaded,
-                        });
-                    } else if kind == "force_field" {
-                        found.force_fields.push(PythonForceField { name, loaded });
-                    } else if kind == "procedure" {
-                        found.procedures.push(PythonProcedure { name, loaded });
-                    } else {
-                        found.exporters.push(PythonExporter {
-                            name,
-                            extensions,
-                            loaded,
-                        });
-                    }
-                }
-                Err(e) => {
-                    let why = match e.location {
-                        Some(at) => format!("{at}: {}", e.message),
-                        None => e.message,
-                    };
-                    found.failed.push((file, why));
-                }
-            }
+        for file in python_files(folder) {
+            let loaded = load(&file, |bridge| {
+                let path = file.to_string_lossy().into_owned();
+                let (namespace, kind, name, extensions) =
+                    bridge.call_method1("load_plugin", (path,))?.extract()?;
+                Ok((namespace, kind, name, extensions, file.clone()))
+            });
+            found.add(loaded, file);
         }
+    }
+    for (name, value) in installed_entry_points() {
+        let label = PathBuf::from(format!("entry point {name} = {value}"));
+        let loaded = load(&label, |bridge| {
+            bridge
+                .call_method1("load_entry_point", (&name, &value))?
+                .extract()
+        });
+        found.add(loaded, label);
     }
     found
 }
 
+/// The `springbake.plugins` entry points of the installed packages, `(name, value)`; none
+/// when the plug-in bridge cannot load (no numpy: the folders' plug-ins report that). Python
+/// is started for it only when a package's metadata names the group ([`declares_plugins`]).
+fn installed_entry_points() -> Vec<(String, String)> {
+    let folders = crate::python::package_folders();
+    if !folders.iter().any(|f| declares_plugins(f)) {
+        return Vec::new();
+    }
+    let folders: Vec<String> = folders
+        .iter()
+        .map(|f| f.to_string_lossy().into_owned())
+        .collect();
+    let label = Path::new("springbake.plugins entry points");
+    with_bridge_of(&PLUGIN_BRIDGE, label, |py, bridge| {
+        bridge
+            .call_method1("entry_points", (folders,))
+            .and_then(|r| r.extract())
+            .map_err(|e| plugin_error(py, e, IoErrorKind::Invalid, label))
+    })
+    .unwrap_or_default()
+}
+
+/// Whether a package in `folder` declares `springbake.plugins` entry points (its
+/// `*.dist-info/entry_points.txt` or `*.egg-info/entry_points.txt` has the section).
+fn declares_plugins(folder: &Path) -> bool {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return false;
+    };
+    entries.flatten().any(|e| {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        (name.ends_with(".dist-info") || name.ends_with(".egg-info"))
+            && std::fs::read_to_string(e.path().join("entry_points.txt"))
+                .is_ok_and(|t| t.lines().any(|l| l.trim() == "[springbake.plugins]"))
+    })
+}
+
+impl Discovered {
+    /// Registers a loaded plug-in under its kind, or records why `origin` did not load.
+    fn add(&mut self, loaded: Result<Manifest, PluginError>, origin: PathBuf) {
+        let (loaded, kind, name, extensions) = match loaded {
+            Ok(m) => m,
+            Err(e) => {
+                let why = match e.location {
+                    Some(at) => format!("{at}: {}", e.message),
+                    None => e.message,
+                };
+                self.failed.push((origin, why));
+                return;
+            }
+        };
+        let extensions = extensions.into_iter().map(|e| &*String::leak(e)).collect();
+        let loaded = Arc::new(loaded);
+        match kind.as_str() {
+            "importer" => self.importers.push(PythonImporter {
+                name,
+                extensions,
+                loaded,
+            }),
+            "force_field" => self.force_fields.push(PythonForceField { name, loaded }),
+            "procedure" => self.procedures.push(PythonProcedure { name, loaded }),
+            _ => self.exporters.push(PythonExporter {
+                name,
+                extensions,
+                loaded,
+            }),
+        }
+    }
+}
+
 type Manifest = (Loaded, String, String, Vec<String>);
 
-fn load(file: &Path) -> Result<Manifest, PluginError> {
-    with_bridge_of(&PLUGIN_BRIDGE, file, |py, bridge| {
-        let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, file);
-        let (namespace, kind, name, extensions): (Bound<PyAny>, String, String, Vec<String>) =
-            bridge
-                .call_method1("load_plugin", (file.to_string_lossy().into_owned(),))
-                .and_then(|r| r.extract())
-                .map_err(to_err)?;
+/// What the bridge's loaders return: the plug-in's namespace, kind, name, extensions and
+/// the file it came from.
+type Found<'py> = (Bound<'py, PyAny>, String, String, Vec<String>, PathBuf);
+
+/// Loads one plug-in through `call` (a file's or an entry point's loader); `origin` names
+/// it in errors.
+fn load(
+    origin: &Path,
+    call: impl for<'py> FnOnce(&Bound<'py, PyModule>) -> PyResult<Found<'py>>,
+) -> Result<Manifest, PluginError> {
+    with_bridge_of(&PLUGIN_BRIDGE, origin, |py, bridge| {
+        let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, origin);
+        let (namespace, kind, name, extensions, file) = call(bridge).map_err(to_err)?;
         let info = namespace.get_item("SPRINGBAKE_PLUGIN").map_err(to_err)?;
         let up_axis = match info
             .get_item("up_axis")
@@ -165,7 +242,7 @@ fn load(file: &Path) -> Result<Manifest, PluginError> {
         Ok((
             Loaded {
                 namespace: namespace.unbind(),
-                file: file.to_path_buf(),
+                file,
                 up_axis,
                 meters_per_unit,
                 per_substep,
