@@ -385,3 +385,68 @@ fn installed_packages_add_plugins_through_their_entry_points() {
     let off = ok(&run(&["plugins", "--no-plugins"]));
     assert!(!off.contains("jsoncache"), "{off}");
 }
+
+/// Issue 22 item 2: a plug-in procedure acts through the host's small API as well as on the
+/// velocities: an impulse on the whole body, a material change and a pin, applied in that
+/// order after it runs. A ball floating (no gravity) is kicked up at 2 m/s and made steel at
+/// 0.1 s and pinned at 0.3 s: it rises 0.4 m, then stays. A material that does not exist is
+/// an error naming the plug-in and the material (exit 2).
+#[test]
+fn a_plugin_procedure_gives_an_impulse_changes_the_material_and_pins() {
+    let dir = setup_with_ball("squash_procedure.py");
+    let d = dir.path();
+    std::fs::write(
+        d.join("plugins/kick.py"),
+        "SPRINGBAKE_PLUGIN = {'kind': 'procedure', 'name': 'kick'}\n\n\n\
+         def run(body, args):\n    if args.get('hold'):\n        return {'pin': True}\n    \
+         m = body['masses'].sum()\n    \
+         return {'impulse': [0.0, 2.0 * m, 0.0], 'material': args.get('material', 'steel')}\n",
+    )
+    .unwrap();
+    let scene = |material: &str| {
+        format!(
+            "[output]\npath = \"kick.json\"\nframes = 13\nfps = 20\n\n[world]\ngravity = 0.0\n\n\
+             [[body]]\nname = \"ball\"\nsource = \"icosphere.glb\"\ncells = 5\nmaterial = \"rubber\"\n\n\
+             [[event]]\nname = \"kick\"\nbody = \"ball\"\non = {{ time = 0.1 }}\n\
+             procedure = {{ plugin = {{ name = \"kick\", args = {{ material = \"{material}\" }} }} }}\n\n\
+             [[event]]\nname = \"hold\"\nbody = \"ball\"\non = {{ time = 0.3 }}\n\
+             procedure = {{ plugin = {{ name = \"kick\", args = {{ hold = true }} }} }}\n"
+        )
+    };
+    std::fs::write(d.join("kick.toml"), scene("steel")).unwrap();
+    ok(&springbake(
+        d,
+        &["bake", "kick.toml", "--progress", "quiet"],
+    ));
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("kick.json")).unwrap()).unwrap();
+    let heights: Vec<f64> = doc["meshes"][0]["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            let f = f.as_array().unwrap();
+            f.iter().map(|p| p[1].as_f64().unwrap()).sum::<f64>() / f.len() as f64
+        })
+        .collect();
+    let rise = |a: usize, b: usize| heights[b] - heights[a];
+    // frames at 0.05 s: kicked at frame 2 (0.1 s), pinned at frame 6 (0.3 s)
+    assert!(
+        rise(0, 2).abs() < 1e-6,
+        "still before the kick: {heights:?}"
+    );
+    assert!(
+        (rise(2, 6) - 0.4).abs() < 0.02,
+        "2 m/s for 0.2 s: {heights:?}"
+    );
+    assert!(rise(6, 12).abs() < 1e-6, "pinned: {heights:?}");
+    std::fs::write(
+        d.join("bad.toml"),
+        scene("unobtanium").replace("kick.json", "bad.json"),
+    )
+    .unwrap();
+    let bad = springbake(d, &["bake", "bad.toml", "--progress", "quiet"]);
+    assert_eq!(bad.status.code(), Some(2), "{}", support::stderr(&bad));
+    let e = support::stderr(&bad);
+    assert!(e.contains("kick") && e.contains("unobtanium"), "{e}");
+}

@@ -157,9 +157,8 @@ fn watch_reloads_an_edited_plugin() {
     let text = scene_text(&source, 3).replace("out.glb", "out.mark");
     std::fs::write(&scene, text).unwrap();
     let out = dir.path().join("out.mark");
-    let mark = || -> serde_json::Value {
-        serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
-    };
+    let mark =
+        || -> serde_json::Value { serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap() };
     let (mut child, rx) = start(&scene);
     let first = next_event(&rx, &["finished", "failed"]);
     assert_eq!(first["event"], "finished", "{first}");

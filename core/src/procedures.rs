@@ -16,7 +16,7 @@
 //! | `follow_trajectory` | every node follows the named `[[trajectory]]` path's displacement (key times count from the firing), exactly or loosely by its `strength` |
 //! | `volume_scale` | squash and stretch: the body's volume is driven to `s ×` its rest volume (ramped at 2 V₀/s, Terasawa §3.2) |
 //! | `anticipate` | the trailing part of the body (nodes weighted 1 at the back to 0 at the front along `velocity`) is drawn back at `pull_back_m / duration_secs` for `duration_secs`, stretching the body against the coming throw; then `set_velocity(velocity)`, and the stretched springs snap it forward |
-//! | `plugin` | the named [`ProcedurePlugin`] registered on the host's [`crate::plugin::Registry`] |
+//! | `plugin` | the named [`ProcedurePlugin`] registered on the host's [`crate::plugin::Registry`]; it may change the nodes and returns built-in procedures (impulse, pin, material, …) applied after it |
 //!
 //! Motion features (`switch_feature`):
 //! - `throw`: dynamics only (gravity, contact); no geometric control.
@@ -49,8 +49,15 @@ pub trait ProcedurePlugin: Send + Sync {
     fn name(&self) -> &str;
     /// Check the arguments when the scene loads; the message says what is wrong.
     fn check(&self, args: &toml::Table) -> Result<(), String>;
-    /// Run on `body` of `world` now (between output frames).
-    fn run(&self, world: &mut World, body: BodyHandle, args: &toml::Table) -> Result<(), String>;
+    /// Run on `body` of `world` now (between output frames). Returns built-in procedures
+    /// for the host to apply to the body next, in order (an impulse, a pin, a material:
+    /// what a plug-in cannot do to the nodes alone); not another plug-in.
+    fn run(
+        &self,
+        world: &mut World,
+        body: BodyHandle,
+        args: &toml::Table,
+    ) -> Result<Vec<Procedure>, String>;
 }
 
 /// Why a procedure could not be applied.
@@ -481,13 +488,27 @@ impl BodyMotion {
                     .registry
                     .procedure(name)
                     .ok_or_else(|| ProcedureError::UnknownPlugin(name.clone()))?;
-                plugin
-                    .run(world, h, args)
-                    .map_err(|message| ProcedureError::Plugin {
-                        name: name.clone(),
-                        message,
-                    })?;
-                reseed_rigid(world, h)
+                let then =
+                    plugin
+                        .run(world, h, args)
+                        .map_err(|message| ProcedureError::Plugin {
+                            name: name.clone(),
+                            message,
+                        })?;
+                reseed_rigid(world, h)?;
+                for next in &then {
+                    if let Procedure::Plugin { name: other, .. } = next {
+                        return Err(ProcedureError::Plugin {
+                            name: name.clone(),
+                            message: format!(
+                                "returned the plug-in procedure \"{other}\"; a plug-in may \
+                                 return built-in procedures only"
+                            ),
+                        });
+                    }
+                    self.apply(world, next, ctx)?;
+                }
+                Ok(())
             }
         }
     }

@@ -246,12 +246,12 @@ impl ProcedurePlugin for Lift {
         world: &mut World,
         body: BodyHandle,
         args: &springbake_core::toml::Table,
-    ) -> Result<(), String> {
+    ) -> Result<Vec<springbake_core::events::Procedure>, String> {
         let h = args["height"].as_float().unwrap();
         for i in world.bodies[body.0].nodes.clone() {
             world.nodes.position[i].y += h;
         }
-        Ok(())
+        Ok(Vec::new())
     }
 }
 

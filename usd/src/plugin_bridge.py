@@ -216,8 +216,12 @@ def call_check(namespace, plugin_path, args_json):
 
 
 def call_procedure(namespace, plugin_path, positions, velocities, masses, time, args_json):
-    """Runs the procedure on one body; returns its new node velocities (n×3 f64 bytes), or
-    None to leave them."""
+    """Runs the procedure on one body; returns (its new node velocities as n×3 f64 bytes or
+    None to leave them, the built-in procedures to apply next as JSON): run() returns None
+    or a dict with any of "velocities" (n×3), "impulse" ([x, y, z] N·s on the whole body),
+    "material" (a preset or scene material name), "pin" (True: hold the body where it is,
+    False: release it) and "procedures" (a list of built-in procedures as scene files write
+    them, e.g. {"set_velocity": [0, 2, 0]} or "settle"), applied in that order."""
     import json
 
     body = {
@@ -231,11 +235,35 @@ def call_procedure(namespace, plugin_path, positions, velocities, masses, time, 
     except BaseException as e:
         raise _raised(e, plugin_path, "running")
     if out is None:
-        return None
-    v = out.get("velocities") if isinstance(out, dict) else out
-    if v is None:
-        return None
-    v = _array(v, "run()['velocities']", 3, np.float64, "run()")
-    if len(v) != len(body["masses"]):
-        raise BridgeError("run() returned %d velocities for %d nodes" % (len(v), len(body["masses"])), "run()")
-    return v.tobytes()
+        return None, "[]"
+    if not isinstance(out, dict):
+        out = {"velocities": out}
+    known = ("velocities", "impulse", "material", "pin", "procedures")
+    unknown = [k for k in out if k not in known]
+    if unknown:
+        raise BridgeError("run() returned unknown keys %s (known: %s)" % (unknown, ", ".join(known)), "run()")
+    v = out.get("velocities")
+    if v is not None:
+        v = _array(v, "run()['velocities']", 3, np.float64, "run()")
+        if len(v) != len(body["masses"]):
+            raise BridgeError("run() returned %d velocities for %d nodes" % (len(v), len(body["masses"])), "run()")
+        v = v.tobytes()
+    then = []
+    if out.get("impulse") is not None:
+        j = _array(np.asarray(out["impulse"], dtype=float).reshape(1, -1), "run()['impulse']", 3, np.float64, "run()")
+        then.append({"apply_impulse": [float(x) for x in j[0]]})
+    if out.get("material") is not None:
+        if not isinstance(out["material"], str):
+            raise BridgeError("run()['material'] must be a material name, got %r" % (out["material"],), "run()")
+        then.append({"change_material": out["material"]})
+    if out.get("pin") is not None:
+        then.append("pin" if out["pin"] else "unpin")
+    extra = out.get("procedures") or []
+    if not isinstance(extra, (list, tuple)):
+        raise BridgeError("run()['procedures'] must be a list", "run()")
+    then.extend(extra)
+    try:
+        text = json.dumps(then)
+    except (TypeError, ValueError) as e:
+        raise BridgeError("run()['procedures'] is not plain data: %s" % e, "run()")
+    return v, text

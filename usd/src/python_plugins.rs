@@ -607,7 +607,7 @@ impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
         world: &mut springbake_core::solver::World,
         body: springbake_core::solver::BodyHandle,
         args: &toml::Table,
-    ) -> Result<(), String> {
+    ) -> Result<Vec<springbake_core::events::Procedure>, String> {
         let plugin = &self.loaded;
         let range = world.bodies[body.0].nodes.clone();
         let nodes = &world.nodes;
@@ -633,15 +633,20 @@ impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
                     ),
                 )
                 .map_err(to_err)?;
-            if out.is_none() {
-                return Ok(None);
-            }
-            out.cast::<PyBytes>()
-                .map(|b| Some(b.as_bytes().to_vec()))
-                .map_err(|e| to_err(e.into()))
+            let (velocities, then): (Option<Bound<PyBytes>>, String) =
+                out.extract().map_err(to_err)?;
+            Ok((velocities.map(|b| b.as_bytes().to_vec()), then))
         })
         .map_err(|e| e.to_string())?;
-        if let Some(bytes) = out {
+        let (velocities, then) = out;
+        let then: Vec<springbake_core::events::Procedure> =
+            serde_json::from_str(&then).map_err(|e| {
+                format!(
+                    "{}: run() returned a procedure springbake does not know: {e}",
+                    plugin.file.display()
+                )
+            })?;
+        if let Some(bytes) = velocities {
             let v = f64_values(&bytes);
             for (slot, c) in world.nodes.velocity[range]
                 .iter_mut()
@@ -650,6 +655,6 @@ impl springbake_core::procedures::ProcedurePlugin for PythonProcedure {
                 *slot = Vector3::new(c[0], c[1], c[2]);
             }
         }
-        Ok(())
+        Ok(then)
     }
 }
