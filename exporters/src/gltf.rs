@@ -26,6 +26,7 @@ mod static_mesh;
 pub use static_mesh::{static_glb, StaticMesh};
 mod compact;
 mod pca;
+mod posed;
 mod rigid;
 
 use builder::{image_mime, uri_encode, DocBuilder};
@@ -36,6 +37,7 @@ use springbake_core::plugin::{
     CacheKind, ExportSettings, Exporter, IoErrorKind, OutputFile, PluginError,
 };
 use springbake_importers::gltf::document::{get_usize, load_document};
+use springbake_importers::gltf::pose::{start_values, StartValue};
 
 /// The glTF 2.0 exporter.
 #[derive(Debug, Clone, Copy, Default)]
@@ -68,19 +70,27 @@ impl Exporter for GltfExporter {
             ));
         }
         check_bake(scene, baked, settings)?;
-        let (mut b, node_of_mesh) = if scene.source.importer == "gltf" {
+        let (mut b, node_of_mesh, starts) = if scene.source.importer == "gltf" {
             source_document(scene)?
         } else {
-            (fresh_document(scene), (0..scene.meshes.len()).collect())
+            let all = (0..scene.meshes.len()).collect();
+            (fresh_document(scene), all, Vec::new())
         };
         let err = |m: String| PluginError::invalid(out, m);
         let mut targets = Vec::new();
+        let mut skins = Vec::new();
         for bm in &baked.meshes {
             let node = node_of_mesh[bm.mesh_index];
-            let mesh = prepare_node(&mut b, node, &scene.meshes[bm.mesh_index]).map_err(err)?;
+            let display = &scene.meshes[bm.mesh_index];
+            let posing = posed::Posing::of(&mut b, node);
+            let mesh = prepare_node(&mut b, node, display).map_err(err)?;
+            posed::write_posed_geometry(&mut b, mesh, display, posing);
+            skins.extend(posing.skin);
             targets.push((node, mesh, bm));
         }
-        drop_weight_channels(&mut b, &targets.iter().map(|t| t.0).collect::<Vec<_>>());
+        let baked_nodes: Vec<usize> = targets.iter().map(|t| t.0).collect();
+        drop_weight_channels(&mut b, &baked_nodes);
+        posed::drop_posing(&mut b, &baked_nodes, &skins, &starts);
         let times: Vec<f32> = (0..baked.frame_count)
             .map(|i| baked.frame_time(i) as f32)
             .collect();
@@ -306,7 +316,12 @@ fn check_lattice(bm: &BakedMesh, vertices: usize, frames: usize) -> Result<(), S
 
 /// Re-read the source glTF, gather its buffers into one and embed its images.
 /// Returns the builder and, per display mesh, its node index.
-fn source_document(scene: &ImportedScene) -> Result<(DocBuilder, Vec<usize>), PluginError> {
+/// The source's document to write the bake into, the node of each display mesh, and the
+/// first animation's values at t = 0 (the pose the importer gave the bodies).
+#[allow(clippy::type_complexity)]
+fn source_document(
+    scene: &ImportedScene,
+) -> Result<(DocBuilder, Vec<usize>, Vec<StartValue>), PluginError> {
     let path = &scene.source.path;
     let bytes = std::fs::read(path).map_err(|e| {
         PluginError::new(
@@ -316,6 +331,7 @@ fn source_document(scene: &ImportedScene) -> Result<(DocBuilder, Vec<usize>), Pl
         )
     })?;
     let doc = load_document(path, &bytes)?;
+    let starts = start_values(&doc)?;
     let mut node_of_mesh = Vec::with_capacity(scene.meshes.len());
     for m in &scene.meshes {
         let node = m
@@ -387,7 +403,7 @@ fn source_document(scene: &ImportedScene) -> Result<(DocBuilder, Vec<usize>), Pl
         .map(|g| format!("springbake (source: {g})"))
         .unwrap_or_else(|| "springbake".to_owned());
     asset["generator"] = json!(generator);
-    Ok((b, node_of_mesh))
+    Ok((b, node_of_mesh, starts))
 }
 
 /// A new document: one node per display mesh (node index = mesh index), materials by name,

@@ -1,7 +1,9 @@
 //! glTF 2.0 import (`.gltf` with external or `data:` buffers, `.glb`).
 //!
 //! Owns: turning a glTF document into [`ImportedScene`]: one [`DisplayMesh`] per node of the
-//! default scene that has a mesh, placed by the node's world matrix; triangle lists, strips
+//! default scene that has a mesh, placed by the node's world matrix, in the pose of the first
+//! frame (the first animation at t = 0, morph targets at their weights, skins applied:
+//! [`pose`]); triangle lists, strips
 //! and fans (triangulated); u8/u16/u32 or missing indices; sparse accessors;
 //! KHR_mesh_quantization attributes decoded to `f32`. Refuses POINTS/LINES primitives,
 //! Draco/meshopt compression, URIs leaving the file's folder, accessors that overrun their
@@ -12,6 +14,7 @@
 
 pub mod accessor;
 pub mod document;
+pub mod pose;
 
 use accessor::{read_indices, read_vec};
 use document::{get_usize, load_document, GltfDocument};
@@ -42,15 +45,18 @@ impl Importer for GltfImporter {
         bytes: &[u8],
         _settings: &ImportSettings,
     ) -> Result<ImportedScene, PluginError> {
-        let doc = load_document(path, bytes)?;
-        let meshes = display_meshes(&doc)?;
+        let mut doc = load_document(path, bytes)?;
+        let starts = pose::start_values(&doc)?;
+        pose::pose_at_start(&mut doc.json, &starts);
+        let (meshes, posed_notes) = display_meshes(&doc)?;
         if meshes.is_empty() {
             return Err(PluginError::invalid(
                 path,
                 "the scene has no node with a mesh: nothing to simulate",
             ));
         }
-        let (materials, notes) = surface_materials(&doc);
+        let (materials, mut notes) = surface_materials(&doc);
+        notes.extend(posed_notes);
         Ok(ImportedScene {
             materials,
             notes,
@@ -190,17 +196,25 @@ pub fn local_matrix(
     Ok(translation * rotation * scale)
 }
 
-fn display_meshes(doc: &GltfDocument) -> Result<Vec<DisplayMesh>, PluginError> {
+/// One display mesh per mesh node of the default scene, in the pose of the first frame
+/// ([`pose`]: skins and morph targets applied); notes for what that pose replaces.
+fn display_meshes(doc: &GltfDocument) -> Result<(Vec<DisplayMesh>, Vec<String>), PluginError> {
     let mut cache: Vec<Option<Vec<Primitive>>> = vec![None; doc.array("meshes").len()];
     let mut out = Vec::new();
-    for placed in scene_nodes(doc)? {
+    let mut notes = Vec::new();
+    let placed_nodes = scene_nodes(doc)?;
+    let mut world_of = vec![None; doc.array("nodes").len()];
+    for p in &placed_nodes {
+        world_of[p.node] = Some(p.world_from_local);
+    }
+    for placed in &placed_nodes {
         let node = &doc.array("nodes")[placed.node];
         let Some(mesh_index) = get_usize(node, "mesh") else {
             continue;
         };
         let location = format!("nodes[{}].mesh", placed.node);
         let mesh = doc.get("meshes", mesh_index, &location)?;
-        let primitives = match cache.get(mesh_index).cloned().flatten() {
+        let mut primitives = match cache.get(mesh_index).cloned().flatten() {
             Some(p) => p,
             None => {
                 let p = mesh_primitives(doc, mesh_index, mesh)?;
@@ -214,6 +228,39 @@ fn display_meshes(doc: &GltfDocument) -> Result<Vec<DisplayMesh>, PluginError> {
             .and_then(Value::as_str)
             .map(str::to_owned)
             .unwrap_or_else(|| format!("node_{}", placed.node));
+        let skin = skin_matrices(doc, node, placed, &world_of)?;
+        let has_targets = mesh["primitives"]
+            .as_array()
+            .is_some_and(|p| p.iter().any(|p| p.get("targets").is_some()));
+        if skin.is_some() || has_targets {
+            let weights = morph_weights(node, mesh);
+            if has_targets {
+                notes.push(format!(
+                    "\"{name}\": its morph targets are applied at their first-frame weights; \
+                     the bake's output replaces them"
+                ));
+            }
+            if skin.is_some() {
+                notes.push(format!(
+                    "\"{name}\" is skinned: it starts from its pose at the first frame; the \
+                     output keeps that pose and drops the skin and the joints' animation"
+                ));
+            }
+            let deformers = pose::Deformers {
+                weights: &weights,
+                skin,
+            };
+            let prims = mesh["primitives"].as_array().cloned().unwrap_or_default();
+            primitives = primitives
+                .into_iter()
+                .zip(&prims)
+                .enumerate()
+                .map(|(p, (base, json))| {
+                    let loc = format!("meshes[{mesh_index}].primitives[{p}]");
+                    pose::posed_primitive(doc, json, &loc, base, &deformers)
+                })
+                .collect::<Result<_, _>>()?;
+        }
         let vertex_count = primitives.iter().map(|p| p.positions.len()).sum();
         out.push(DisplayMesh {
             name,
@@ -224,7 +271,60 @@ fn display_meshes(doc: &GltfDocument) -> Result<Vec<DisplayMesh>, PluginError> {
             source_point_count: vertex_count,
         });
     }
-    Ok(out)
+    Ok((out, notes))
+}
+
+/// The node's morph weights: its own, else its mesh's, else none.
+fn morph_weights(node: &Value, mesh: &Value) -> Vec<f64> {
+    node.get("weights")
+        .or_else(|| mesh.get("weights"))
+        .and_then(Value::as_array)
+        .map(|a| a.iter().map(|w| w.as_f64().unwrap_or(0.0)).collect())
+        .unwrap_or_default()
+}
+
+/// For a skinned node: per joint, `joint world × inverse bind matrix`, and the node's world
+/// matrix (the posed vertices are written in its local frame, as the output keeps the node
+/// without its skin).
+#[allow(clippy::type_complexity)]
+fn skin_matrices(
+    doc: &GltfDocument,
+    node: &Value,
+    placed: &PlacedNode,
+    world_of: &[Option<Matrix4<f64>>],
+) -> Result<Option<(Vec<Matrix4<f64>>, Matrix4<f64>)>, PluginError> {
+    let Some(skin_index) = get_usize(node, "skin") else {
+        return Ok(None);
+    };
+    let location = format!("nodes[{}].skin", placed.node);
+    let skin = doc.get("skins", skin_index, &location)?;
+    let joints: Vec<usize> = skin["joints"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|j| j.as_u64().map(|j| j as usize))
+                .collect()
+        })
+        .unwrap_or_default();
+    let inverse_binds = match get_usize(skin, "inverseBindMatrices") {
+        Some(i) => accessor::read_floats(doc, i, &format!("skins[{skin_index}]"))?.0,
+        None => Vec::new(),
+    };
+    let mut matrices = Vec::with_capacity(joints.len());
+    for (k, &j) in joints.iter().enumerate() {
+        let world = world_of.get(j).copied().flatten().ok_or_else(|| {
+            doc.error(
+                format!("skins[{skin_index}].joints[{k}]"),
+                format!("joint node {j} is not in the scene"),
+            )
+        })?;
+        let ibm = inverse_binds
+            .get(16 * k..16 * k + 16)
+            .map(|m| Matrix4::from_iterator(m.iter().map(|&x| f64::from(x))))
+            .unwrap_or_else(Matrix4::identity);
+        matrices.push(world * ibm);
+    }
+    Ok(Some((matrices, placed.world_from_local)))
 }
 
 fn mesh_primitives(
