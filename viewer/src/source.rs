@@ -113,12 +113,17 @@ impl Simulation {
 #[derive(Debug, Clone)]
 pub struct BakedMeshData {
     pub world_from_local: springbake_core::nalgebra::Matrix4<f64>,
+    /// Per frame, the node's world matrix when the file animates it (the compact cache's
+    /// rigid keys); empty for a node that stays put.
+    pub frame_worlds: Vec<springbake_core::nalgebra::Matrix4<f64>>,
     pub rest: Vec<[f32; 3]>,
     /// Per morph target, one delta per vertex (empty when the mesh is not morphed).
     pub deltas: Vec<Vec<[f32; 3]>>,
     /// Weights per frame (one per target), from the node's `weights` animation channel.
     pub frame_weights: Vec<Vec<f32>>,
     pub triangles: Vec<[u32; 3]>,
+    /// Its glTF node.
+    pub node: Option<usize>,
     /// The base colour of its first primitive's material (sRGB), else the viewer's body colour.
     pub colour: [u8; 3],
     /// That material's base-colour image (a PNG) over the mesh's UVs, when it has both.
@@ -289,6 +294,10 @@ impl BakedPlayback {
         self.meshes
             .iter()
             .map(|m| {
+                let world = match m.frame_worlds.len() {
+                    0 => &m.world_from_local,
+                    n => &m.frame_worlds[frame.clamp(1, n) - 1],
+                };
                 let weights = if m.frame_weights.is_empty() {
                     None
                 } else {
@@ -311,7 +320,7 @@ impl BakedPlayback {
                                 }
                             }
                         }
-                        m.world_from_local.transform_point(&Point3::from(p)).coords
+                        world.transform_point(&Point3::from(p)).coords
                     })
                     .collect();
                 DrawMesh {
@@ -502,6 +511,41 @@ impl ViewSource {
     }
 }
 
+/// Per frame (at `f / fps`), the world matrix of each mesh whose node (or an ancestor) the
+/// file's animations move: translation, rotation and scale channels sampled and the node
+/// tree composed again (`doc`'s nodes are overwritten with each frame's values).
+fn animate_nodes(
+    doc: &mut GltfDocument,
+    meshes: &mut [BakedMeshData],
+    frame_count: usize,
+    fps: f64,
+) -> Result<(), ViewerError> {
+    use springbake_importers::gltf::pose::{pose_at_start, values_at};
+    let moves = |v: &springbake_importers::gltf::pose::StartValue| v.path != "weights";
+    let animations = doc.array("animations").len();
+    let mut any = false;
+    for a in 0..animations {
+        any |= values_at(doc, a, 0.0)?.iter().any(moves);
+    }
+    if !any {
+        return Ok(());
+    }
+    for f in 0..frame_count {
+        let time = f as f64 / fps.max(1e-9);
+        for a in 0..animations {
+            let values: Vec<_> = values_at(doc, a, time)?.into_iter().filter(moves).collect();
+            pose_at_start(&mut doc.json, &values);
+        }
+        let worlds = springbake_importers::gltf::scene_nodes(doc)?;
+        for m in meshes.iter_mut() {
+            if let Some(w) = m.node.and_then(|n| worlds.iter().find(|p| p.node == n)) {
+                m.frame_worlds.push(w.world_from_local);
+            }
+        }
+    }
+    Ok(())
+}
+
 /// A `weights` animation channel: target node, key times, flat weights (targets per key).
 type WeightsChannel = (usize, Vec<f32>, Vec<f32>);
 
@@ -555,7 +599,7 @@ fn weights_channels(doc: &GltfDocument) -> Result<Vec<WeightsChannel>, PluginErr
 
 /// A baked glTF's meshes and frames, or `None` when the file has no morph targets (a plain mesh).
 pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback>, ViewerError> {
-    let doc = load_document(path, bytes)?;
+    let mut doc = load_document(path, bytes)?;
     let has_targets = doc.array("meshes").iter().any(|m| {
         m.get("primitives")
             .and_then(Value::as_array)
@@ -571,7 +615,8 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
     let mut fps = 24.0;
     for mesh in &scene.meshes {
         let triangles = mesh.triangles();
-        let rest: Vec<[f32; 3]> = mesh
+        // The importer gives the first frame's pose; the targets play from the base mesh.
+        let mut rest: Vec<[f32; 3]> = mesh
             .primitives
             .iter()
             .flat_map(|p| p.positions.iter().copied())
@@ -602,6 +647,13 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
                         == Some(ip.positions.len())
                 });
             if counts_match {
+                rest.clear();
+                for (pi, p) in prims.iter().enumerate() {
+                    let location = format!("meshes[{mi}].primitives[{pi}].attributes.POSITION");
+                    let accessor = get_usize(&p["attributes"], "POSITION").unwrap_or(usize::MAX);
+                    let (flat, _) = read_floats(&doc, accessor, &location)?;
+                    rest.extend(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                }
                 let targets = prims
                     .first()
                     .and_then(|p| p.get("targets"))
@@ -657,6 +709,8 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
         let texture = surface_texture(&scene, mesh);
         meshes.push(BakedMeshData {
             world_from_local: mesh.world_from_local,
+            frame_worlds: Vec::new(),
+            node,
             rest,
             deltas,
             frame_weights,
@@ -665,6 +719,7 @@ pub fn read_baked_gltf(path: &Path, bytes: &[u8]) -> Result<Option<BakedPlayback
             texture,
         });
     }
+    animate_nodes(&mut doc, &mut meshes, frame_count, fps)?;
     let (floor, capsules, colliders) = read_stage(&doc);
     Ok(Some(BakedPlayback {
         meshes,

@@ -281,3 +281,48 @@ fn reloader_signals_when_a_watched_source_changes() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
 }
+
+/// The compact cache (`cache = "pca"`) moves its node with translation and rotation keys:
+/// the viewer plays them, so each frame sits where the morph cache's does (within the
+/// cache's 1 mm bound).
+#[test]
+fn a_pca_cache_plays_its_rigid_keys_as_the_morph_cache_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "morph.glb");
+    let registry = springbake_pipeline::default_registry();
+    let mut loaded = springbake_pipeline::load_scene(&scene).unwrap();
+    springbake_pipeline::bake(&registry, &loaded, &mut Default::default()).unwrap();
+    let text = std::fs::read_to_string(&scene)
+        .unwrap()
+        .replace("morph.glb\"", "pca.glb\"\ncache = \"pca\"");
+    std::fs::write(&scene, text).unwrap();
+    loaded = springbake_pipeline::load_scene(&scene).unwrap();
+    springbake_pipeline::bake(&registry, &loaded, &mut Default::default()).unwrap();
+    let doc: serde_json::Value = {
+        let bytes = std::fs::read(dir.path().join("pca.glb")).unwrap();
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + n]).unwrap()
+    };
+    let channels = doc["animations"][0]["channels"].as_array().unwrap();
+    assert!(
+        channels
+            .iter()
+            .any(|c| c["target"]["path"] == "translation"),
+        "the pca cache has rigid keys: {channels:?}"
+    );
+    let mut morph = ViewSource::open(&registry, &dir.path().join("morph.glb")).unwrap();
+    let mut pca = ViewSource::open(&registry, &dir.path().join("pca.glb")).unwrap();
+    for frame in [1, 6, 12] {
+        let (a, b) = (
+            morph.meshes_at(frame).unwrap(),
+            pca.meshes_at(frame).unwrap(),
+        );
+        let worst = a[0]
+            .positions
+            .iter()
+            .zip(&b[0].positions)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1.1e-3, "frame {frame}: {worst} m apart");
+    }
+}

@@ -1,7 +1,7 @@
 //! The pose a glTF renders at its first frame (issue 19 item 4): the first animation's
-//! channels sampled at t = 0 ([`start_values`]), written into the nodes as their static
-//! transform and morph weights ([`pose_at_start`]), and the geometry of a mesh under that
-//! pose ([`posed_primitive`]): its morph targets at the node's weights, then its skin at the
+//! channels sampled at t = 0 ([`start_values`]; any animation at any time: [`values_at`]),
+//! written into the nodes as their static transform and morph weights ([`pose_at_start`]),
+//! and the geometry of a mesh under that pose ([`posed_primitive`]): its morph targets at the node's weights, then its skin at the
 //! joints' world matrices. Bodies start from what the artist sees; the exporter writes the
 //! same pose as the output's static one and drops what drove it.
 
@@ -12,10 +12,10 @@ use serde_json::{json, Value};
 use springbake_core::display::Primitive;
 use springbake_core::plugin::PluginError;
 
-/// One channel of the first animation at t = 0.
+/// One animation channel's value at a time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StartValue {
-    /// Index of the channel in `animations[0].channels`.
+    /// Index of the channel in its animation's `channels`.
     pub channel: usize,
     pub node: usize,
     /// `translation`, `rotation`, `scale` or `weights`.
@@ -26,16 +26,26 @@ pub struct StartValue {
 /// The first animation's channels at t = 0 (before its first key: the first key; between
 /// keys: interpolated as the sampler says). None without animations.
 pub fn start_values(doc: &GltfDocument) -> Result<Vec<StartValue>, PluginError> {
-    let Some(animation) = doc.array("animations").first() else {
+    if doc.array("animations").is_empty() {
+        return Ok(Vec::new());
+    }
+    values_at(doc, 0, 0.0)
+}
+
+/// The node channels (translation, rotation, scale, weights) of `animations[animation]` at
+/// `time` seconds.
+pub fn values_at(
+    doc: &GltfDocument,
+    animation: usize,
+    time: f64,
+) -> Result<Vec<StartValue>, PluginError> {
+    let Some(json) = doc.array("animations").get(animation) else {
         return Ok(Vec::new());
     };
-    let channels = animation["channels"]
-        .as_array()
-        .cloned()
-        .unwrap_or_default();
+    let channels = json["channels"].as_array().cloned().unwrap_or_default();
     let mut out = Vec::new();
     for (c, channel) in channels.iter().enumerate() {
-        let location = format!("animations[0].channels[{c}]");
+        let location = format!("animations[{animation}].channels[{c}]");
         let target = &channel["target"];
         let (Some(node), Some(path)) = (get_usize(target, "node"), target["path"].as_str()) else {
             continue; // a channel without a node drives nothing here
@@ -44,9 +54,9 @@ pub fn start_values(doc: &GltfDocument) -> Result<Vec<StartValue>, PluginError> 
             continue;
         }
         let sampler = get_usize(channel, "sampler")
-            .and_then(|s| animation["samplers"].get(s))
+            .and_then(|s| json["samplers"].get(s))
             .ok_or_else(|| doc.error(&location, "the channel's sampler does not exist"))?;
-        let value = sample_at_zero(doc, sampler, path == "rotation", &location)?;
+        let value = sample_at(doc, sampler, path == "rotation", time, &location)?;
         out.push(StartValue {
             channel: c,
             node,
@@ -57,11 +67,12 @@ pub fn start_values(doc: &GltfDocument) -> Result<Vec<StartValue>, PluginError> 
     Ok(out)
 }
 
-/// A sampler's value at t = 0.
-fn sample_at_zero(
+/// A sampler's value at `time`.
+fn sample_at(
     doc: &GltfDocument,
     sampler: &Value,
     rotation: bool,
+    time: f64,
     location: &str,
 ) -> Result<Vec<f64>, PluginError> {
     let input = get_usize(sampler, "input")
@@ -95,13 +106,20 @@ fn sample_at_zero(
             .map(|&x| f64::from(x))
             .collect()
     };
-    let after = times.iter().position(|&t| t > 0.0).unwrap_or(keys);
+    let after = times
+        .iter()
+        .position(|&t| f64::from(t) > time)
+        .unwrap_or(keys);
     if after == 0 || after == keys || interpolation != "LINEAR" {
         // before the first key, after the last, or STEP / CUBICSPLINE at a key's value
         return Ok(value(after.saturating_sub(1)));
     }
     let (t0, t1) = (f64::from(times[after - 1]), f64::from(times[after]));
-    let s = if t1 > t0 { -t0 / (t1 - t0) } else { 0.0 };
+    let s = if t1 > t0 {
+        (time - t0) / (t1 - t0)
+    } else {
+        0.0
+    };
     let (a, b) = (value(after - 1), value(after));
     if rotation && width == 4 {
         let q =
