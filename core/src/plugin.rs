@@ -63,6 +63,9 @@ pub struct ImportSettings {
     /// in, symlinks resolved; `None` means the source's own folder. glTF buffers and images
     /// are always read from the source's own folder or below.
     pub root: Option<PathBuf>,
+    /// USD: also simulate invisible meshes and proxy/guide geometry (a renderer draws neither;
+    /// by default they are left out, with a note).
+    pub include_hidden: bool,
 }
 
 /// Reads a file into the display model.

@@ -441,6 +441,9 @@ pub struct BodySection {
     /// The `bounce` feature settles once a rebound is slower than this, m/s.
     #[serde(default = "default_bounce_tolerance")]
     pub bounce_tolerance: f64,
+    /// USD sources: also simulate invisible meshes and proxy/guide geometry.
+    #[serde(default)]
+    pub include_hidden: bool,
 }
 
 fn default_contact_scale() -> f64 {
@@ -472,6 +475,7 @@ impl BodySection {
             region: Vec::new(),
             contact_scale: default_contact_scale(),
             bounce_tolerance: default_bounce_tolerance(),
+            include_hidden: false,
         }
     }
 }

@@ -200,6 +200,14 @@ impl LoadedScene {
         }
     }
 
+    /// [`Self::import_settings`] for one body's source (its `include_hidden`).
+    pub fn import_settings_for(&self, body: &BodySection) -> ImportSettings {
+        ImportSettings {
+            include_hidden: body.include_hidden,
+            ..self.import_settings()
+        }
+    }
+
     /// The output file.
     pub fn output_path(&self) -> PathBuf {
         self.base_dir.join(&self.scene.output.path)

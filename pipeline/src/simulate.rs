@@ -82,7 +82,7 @@ fn import_all(
                 source_path: path.clone(),
                 message,
             })?;
-        scenes.push(importer.import(&path, &bytes, &loaded.import_settings())?);
+        scenes.push(importer.import(&path, &bytes, &loaded.import_settings_for(body))?);
     }
     Ok(scenes)
 }

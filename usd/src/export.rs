@@ -388,7 +388,8 @@ impl UsdExporter {
             let source = &scene.source.path;
             let own_folder = source.parent().unwrap_or(Path::new("")).to_path_buf();
             let root = scene.source.read_root.clone().unwrap_or(own_folder);
-            let stage = read_stage(source, &root)?;
+            // Every mesh, hidden ones too: the baked ones are found by path below.
+            let stage = read_stage(source, &root, true)?;
             let mut prepared = Vec::new();
             for (bm, mesh) in &items {
                 let raw = stage

@@ -14,6 +14,8 @@ pub struct RawStage {
     pub up_axis: UpAxis,
     pub meters_per_unit: f64,
     pub meshes: Vec<RawMesh>,
+    /// Meshes left out and why (invisible, proxy/guide, a point-instancer prototype).
+    pub hidden: Vec<String>,
     /// The bound materials' UsdPreviewSurface looks.
     pub materials: Vec<SurfaceMaterial>,
 }
@@ -67,10 +69,11 @@ fn raw_mesh(m: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
     })
 }
 
-/// Open `path` with usd-core and read every mesh's raw arrays. Every layer the stage pulls in
-/// (subLayers, references, payloads, transitively) must resolve inside `root`, symlinks
-/// followed; the bridge checks each one before opening it.
-pub fn read_stage(path: &Path, root: &Path) -> Result<RawStage, PluginError> {
+/// Open `path` with usd-core and read every mesh's raw arrays, native instances expanded
+/// (`usd_bridge.read_stage`); invisible and proxy/guide meshes too when `include_hidden`.
+/// Every layer the stage pulls in (subLayers, references, payloads, transitively) must
+/// resolve inside `root`, symlinks followed; the bridge checks each one before opening it.
+pub fn read_stage(path: &Path, root: &Path, include_hidden: bool) -> Result<RawStage, PluginError> {
     with_bridge(path, |py, bridge| {
         let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Invalid, path);
         let root = if root.as_os_str().is_empty() {
@@ -84,6 +87,7 @@ pub fn read_stage(path: &Path, root: &Path) -> Result<RawStage, PluginError> {
                 (
                     path.to_string_lossy().into_owned(),
                     root.to_string_lossy().into_owned(),
+                    include_hidden,
                 ),
             )
             .map_err(to_err)?;
@@ -149,10 +153,15 @@ pub fn read_stage(path: &Path, root: &Path) -> Result<RawStage, PluginError> {
                 }
             }
         }
+        let hidden: Vec<String> = result
+            .get_item("hidden")
+            .and_then(|v| v.extract())
+            .map_err(to_err)?;
         Ok(RawStage {
             up_axis,
             meters_per_unit,
             meshes,
+            hidden,
             materials,
         })
     })
@@ -169,11 +178,12 @@ impl UsdImporter {
         &self,
         path: &Path,
         bytes: &[u8],
-        root: Option<&Path>,
+        settings: &ImportSettings,
     ) -> Result<ImportedScene, PluginError> {
         if path.is_file() {
             let own_folder = path.parent().unwrap_or(Path::new(""));
-            return self.import_path(path, path, root.unwrap_or(own_folder));
+            let root = settings.root.as_deref().unwrap_or(own_folder);
+            return self.import_path(path, path, root, settings.include_hidden);
         }
         if bytes.is_empty() {
             return Err(PluginError::new(
@@ -193,7 +203,7 @@ impl UsdImporter {
         std::fs::write(&temp, bytes)
             .map_err(|e| PluginError::new(IoErrorKind::Io, path, format!("temp file: {e}")))?;
         // Bytes from memory have no folder: they may pull in nothing.
-        self.import_path(&temp, path, dir.path())
+        self.import_path(&temp, path, dir.path(), settings.include_hidden)
     }
 
     fn import_path(
@@ -201,12 +211,13 @@ impl UsdImporter {
         open: &Path,
         report: &Path,
         root: &Path,
+        include_hidden: bool,
     ) -> Result<ImportedScene, PluginError> {
         let retarget = |mut e: PluginError| {
             e.path = report.to_path_buf();
             e
         };
-        let stage = read_stage(open, root).map_err(retarget)?;
+        let stage = read_stage(open, root, include_hidden).map_err(retarget)?;
         if stage.meshes.is_empty() {
             return Err(PluginError::invalid(
                 report,
@@ -218,9 +229,21 @@ impl UsdImporter {
             .iter()
             .map(|m| build_display_mesh(m, report))
             .collect::<Result<Vec<_>, _>>()?;
+        let mut notes = Vec::new();
+        if !stage.hidden.is_empty() {
+            let shown: Vec<&str> = stage.hidden.iter().take(5).map(String::as_str).collect();
+            notes.push(format!(
+                "{}: {} mesh(es) not simulated, as a renderer would not draw them there: {}{} \
+                 (include_hidden = true on the body simulates invisible and proxy/guide meshes)",
+                report.display(),
+                stage.hidden.len(),
+                shown.join(", "),
+                if stage.hidden.len() > 5 { ", …" } else { "" }
+            ));
+        }
         Ok(ImportedScene {
             materials: stage.materials,
-            notes: Vec::new(),
+            notes,
             meshes,
             up_axis: stage.up_axis,
             meters_per_unit: stage.meters_per_unit,
@@ -248,6 +271,6 @@ impl Importer for UsdImporter {
         bytes: &[u8],
         settings: &ImportSettings,
     ) -> Result<ImportedScene, PluginError> {
-        self.import_from(path, bytes, settings.root.as_deref())
+        self.import_from(path, bytes, settings)
     }
 }

@@ -80,6 +80,8 @@ def _check_layer_tree(path, root):
         if layer is None:
             continue
         for asset in layer.GetCompositionAssetDependencies():
+            if not asset:
+                continue  # an internal reference (`</Prim>`): this layer itself
             resolved = layer.ComputeAbsolutePath(asset)
             # A file inside a .usdz package is named "package.usdz[inner.usdc]".
             outer = resolved.split("[", 1)[0]
@@ -88,7 +90,7 @@ def _check_layer_tree(path, root):
                 raise _outside_error(
                     "the layer \"%s\" named in %s" % (asset, layer.identifier), real, root_real
                 )
-            if os.path.exists(real):
+            if os.path.isfile(real):
                 pending.append(resolved if "[" in resolved else real)
 
 
@@ -169,7 +171,22 @@ def _material_look(material):
         return None
 
 
-def read_stage(path, root):
+def _in_point_instancer(prim):
+    """Whether an ancestor of `prim` is a UsdGeomPointInstancer (its prototypes are drawn
+    only at the instancer's points, not where they sit)."""
+    parent = prim.GetParent()
+    while parent and not parent.IsPseudoRoot():
+        if parent.IsA(UsdGeom.PointInstancer):
+            return True
+        parent = parent.GetParent()
+    return False
+
+
+def read_stage(path, root, include_hidden=False):
+    """The stage's meshes as a renderer draws them: native instances expanded (each instance
+    a mesh of its own, at its instance proxy's path), point-instancer prototypes left out,
+    invisible and proxy/guide geometry left out unless `include_hidden`. `hidden` lists what
+    was left out and why."""
     _check_layer_tree(path, root)
     stage = _open(path)
     _check_used_layers(stage, root)
@@ -177,18 +194,21 @@ def read_stage(path, root):
     meshes = []
     hidden = []
     looks = {}
-    for prim in stage.Traverse():
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
         if not prim.IsA(UsdGeom.Mesh):
             continue
         location = str(prim.GetPath())
+        if _in_point_instancer(prim):
+            hidden.append(location + " (a PointInstancer prototype)")
+            continue
         # What a renderer would not draw is not simulated: invisible prims (their own
         # visibility or an ancestor's) and proxy or guide geometry.
         imageable = UsdGeom.Imageable(prim)
         purpose = imageable.ComputePurpose()
-        if imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+        if not include_hidden and imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
             hidden.append(location + " (invisible)")
             continue
-        if purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
+        if not include_hidden and purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
             hidden.append("%s (purpose %s)" % (location, purpose))
             continue
         mesh = UsdGeom.Mesh(prim)
@@ -269,14 +289,17 @@ def read_stage(path, root):
         )
     if not meshes and hidden:
         raise BridgeError(
-            "every UsdGeomMesh is invisible or proxy/guide geometry, so there is nothing to "
-            "simulate: " + ", ".join(hidden[:5]) + (" …" if len(hidden) > 5 else ""),
+            "every UsdGeomMesh is invisible, proxy/guide geometry or a point-instancer "
+            "prototype, so there is nothing to simulate: " + ", ".join(hidden[:5])
+            + (" …" if len(hidden) > 5 else "")
+            + " (set include_hidden = true on the body to simulate invisible and proxy/guide meshes)",
             str(path),
         )
     return {
         "up_axis": str(UsdGeom.GetStageUpAxis(stage)),
         "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
         "meshes": meshes,
+        "hidden": hidden,
         "materials": [look for look in looks.values() if look is not None],
     }
 
@@ -354,6 +377,14 @@ def write_source_stage(source_path, out_path, spec):
         raise BridgeError("usd-core cannot flatten the source stage: " + _clean_tf_message(e))
     stage = Usd.Stage.Open(flat_layer)
     frame_count = int(spec["frame_count"])
+    # A baked mesh inside a native instance gets points of its own: its instance stops
+    # sharing the prototype (it composes as a plain reference), so it can be authored.
+    for item in spec["meshes"]:
+        prim = stage.GetPrimAtPath(item["prim_path"])
+        while prim and prim.IsInstanceProxy():
+            prim = prim.GetParent()
+        if prim and prim.IsInstance():
+            prim.SetInstanceable(False)
     for item in spec["meshes"]:
         location = item["prim_path"]
         prim = stage.GetPrimAtPath(location)

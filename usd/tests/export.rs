@@ -108,7 +108,7 @@ fn usd_source_round_trips_through_usd_core_as_usda_and_usdc() {
         } else {
             assert!(head.starts_with(b"PXR-USDC"), "{out_name}");
         }
-        let raw = springbake_usd::read_stage(&source, source.parent().unwrap()).unwrap();
+        let raw = springbake_usd::read_stage(&source, source.parent().unwrap(), false).unwrap();
         let json = readback(&out);
         assert_eq!(json["up_axis"], "Z", "{out_name}");
         assert_eq!(json["meters_per_unit"], 1.0);

@@ -82,9 +82,12 @@ fn cylinder_usdc_is_z_up_metres_with_24_gon_caps() {
     let p = &m.primitives[0];
     assert!(p.normals.is_some() && p.uvs.is_some());
     // Every display vertex sits where its source point is.
-    let stage =
-        springbake_usd::read_stage(&corpus_dir().join("blender/cylinder.usdc"), &corpus_dir())
-            .unwrap();
+    let stage = springbake_usd::read_stage(
+        &corpus_dir().join("blender/cylinder.usdc"),
+        &corpus_dir(),
+        false,
+    )
+    .unwrap();
     for (v, &src) in m.source_point_of_vertex.iter().enumerate() {
         let q = stage.meshes[0].points[src as usize];
         assert_eq!(p.positions[v], q.map(|c| c as f32));

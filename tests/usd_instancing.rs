@@ -1,0 +1,80 @@
+//! USD sources as a renderer draws them (issue 19 item 3): native instances (instanceable
+//! internal references) are simulated, one body per instance, and written back with their
+//! own points (the instance stops sharing its prototype); a point instancer's prototype is not
+//! simulated where it sits; an invisible mesh is left out with a note unless the body asks
+//! for it (`include_hidden = true`). usd-core reads the baked stages. Before this, the two
+//! crates were skipped silently (the traversal did not enter instances) and the prototype was
+//! simulated as a body; the stage did not even open (an internal reference was taken for a
+//! file).
+
+#![allow(clippy::unwrap_used)] // tests: a failed unwrap is a failed test
+
+mod support;
+
+use support::{springbake_in, stderr};
+
+fn motion(stage: &std::path::Path) -> serde_json::Value {
+    let out =
+        springbake_testkit::run_python_client("usd_mesh_motion.py", &[stage.to_str().unwrap()]);
+    springbake_testkit::last_json_line(&out)["meshes"].clone()
+}
+
+#[test]
+fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let source = d.join("stage.usda");
+    springbake_testkit::run_python_client("make_instanced_usd.py", &[source.to_str().unwrap()]);
+    let out = springbake_in(
+        d,
+        &[
+            "bake",
+            "stage.usda",
+            "-o",
+            "baked.usda",
+            "--frames",
+            "24",
+            "--progress",
+            "quiet",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("2 mesh(es) not simulated")
+            && err.contains("/World/Scatter/Prototypes/Pebble (a PointInstancer prototype)")
+            && err.contains("/World/GhostXf/Ghost (invisible)")
+            && err.contains("include_hidden"),
+        "{err}"
+    );
+    let m = motion(&d.join("baked.usda"));
+    for crate_path in ["/World/Crate0/Box", "/World/Crate1/Box"] {
+        let c = &m[crate_path];
+        assert_eq!(c["samples"], 24, "{crate_path}: {m}");
+        let (first, last) = (
+            c["lowest_first"].as_f64().unwrap(),
+            c["lowest_last"].as_f64().unwrap(),
+        );
+        assert!(first > 0.7 && last < first - 0.3, "{crate_path} falls: {c}");
+    }
+    assert_eq!(m["/World/Scatter/Prototypes/Pebble"]["samples"], 0, "{m}");
+    assert_eq!(m["/World/GhostXf/Ghost"]["samples"], 0, "{m}");
+
+    // Asked for: the invisible box is simulated too.
+    std::fs::write(
+        d.join("scene.toml"),
+        "[output]\npath = \"all.usda\"\nframes = 12\n[world]\nfloor = 0.0\n\
+         [[body]]\nsource = \"stage.usda\"\ninclude_hidden = true\n",
+    )
+    .unwrap();
+    let out = springbake_in(d, &["bake", "scene.toml", "--progress", "quiet"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("1 mesh(es) not simulated"),
+        "{}",
+        stderr(&out)
+    );
+    let m = motion(&d.join("all.usda"));
+    assert_eq!(m["/World/GhostXf/Ghost"]["samples"], 12, "{m}");
+    assert_eq!(m["/World/Crate1/Box"]["samples"], 12, "{m}");
+}
