@@ -47,7 +47,7 @@ enum Command {
     Bake {
         /// A scene file (.toml) or a mesh (.glb, .gltf, .obj, .usda, .usdc, .usdz).
         input: PathBuf,
-        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .abc, .pc2, .mdd, or .vat: a folder of vertex animation textures).
+        /// Output file; the format comes from the extension (.glb, .gltf, .usda, .usdc, .usdz: a package with its textures, .abc, .pc2, .mdd, or .vat: a folder of vertex animation textures).
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// Number of output frames (frame 1 is the initial state).

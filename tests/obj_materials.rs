@@ -82,14 +82,29 @@ fn blender_sees_the_objs_materials_in_the_baked_gltf() {
     );
 }
 
-/// A glTF's materials reach a USD bake too: Blender's glTF of the same props, baked to USD,
-/// shows the texture and the blue as Blender's import of the glTF does.
+/// A glTF's materials reach a USD bake too: Blender's glTF of the same props, baked to USD
+/// (a layer with its images beside it, and a .usdz package holding them), shows the texture
+/// and the blue as Blender's import of the glTF does.
 #[test]
 fn a_gltfs_materials_reach_a_usd_bake() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     run_python_client("obj_materials_blender.py", &["make", d.to_str().unwrap()]);
-    let usda = d.join("from_gltf.usda");
+    for name in ["from_gltf.usda", "packed.usdz"] {
+        a_gltfs_materials_reach(d, name);
+    }
+    assert!(
+        d.join("from_gltf_textures").is_dir(),
+        "a layer's images beside it"
+    );
+    assert!(
+        !d.join("packed_textures").exists(),
+        "a package holds its images"
+    );
+}
+
+fn a_gltfs_materials_reach(d: &std::path::Path, name: &str) {
+    let usda = d.join(name);
     let o = bake(&d.join("props.glb"), &usda, "4");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let want = look(&d.join("props.glb"));
@@ -142,4 +157,48 @@ fn an_objects_materials_become_usd_geom_subsets() {
         seen["materials"]["B"]["colour"],
         serde_json::json!([0.0, 0.0, 1.0, 1.0])
     );
+}
+
+/// An OBJ material's normal map (`map_Bump`) and opacity map (`map_d`) reach a USD bake as
+/// UsdUVTexture inputs of its UsdPreviewSurface: the normal read raw and mapped to [-1, 1]
+/// (scale 2, bias -1), the opacity from the image's red channel; every file resolves.
+#[test]
+fn normal_and_opacity_maps_reach_a_usd_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run_python_client("obj_materials_blender.py", &["make", d.to_str().unwrap()]);
+    let mtl = std::fs::read_to_string(d.join("props.mtl")).unwrap();
+    let with_maps = mtl.replace(
+        "map_Kd bricks.png",
+        "map_Kd bricks.png\nmap_Bump bricks.png\nmap_d bricks.png",
+    );
+    assert_ne!(
+        with_maps, mtl,
+        "the test's .mtl names its base-colour image:\n{mtl}"
+    );
+    std::fs::write(d.join("props.mtl"), with_maps).unwrap();
+    for name in ["maps.usda", "maps.usdz"] {
+        let out = d.join(name);
+        let o = bake(&d.join("props.obj"), &out, "2");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let maps = last_json_line(&run_python_client(
+            "usd_material_maps.py",
+            &[out.to_str().unwrap()],
+        ));
+        let brick = &maps["Brick"];
+        for input in ["diffuseColor", "normal", "opacity"] {
+            assert_eq!(brick[input]["resolves"], true, "{name} {input}: {maps}");
+        }
+        assert_eq!(brick["normal"]["colour_space"], "raw", "{maps}");
+        assert_eq!(
+            brick["normal"]["scale"],
+            serde_json::json!([2.0, 2.0, 2.0, 1.0])
+        );
+        assert_eq!(
+            brick["normal"]["bias"],
+            serde_json::json!([-1.0, -1.0, -1.0, 0.0])
+        );
+        assert_eq!(brick["opacity"]["output"], "r", "{maps}");
+        assert!(maps["Blue"].as_object().unwrap().is_empty(), "{maps}");
+    }
 }

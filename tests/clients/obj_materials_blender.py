@@ -5,7 +5,7 @@ Usage:
                                                 Blender's OBJ exporter, and props.glb with its
                                                 glTF exporter: a textured "Brick" cube and a
                                                 plain "Blue" sphere
-  python obj_materials_blender.py look FILE     imports FILE (.obj, .glb or .usda) and prints what
+  python obj_materials_blender.py look FILE     imports FILE (.obj, .glb, .usda or .usdz) and prints what
                                                 Blender sees: visible mesh objects, each
                                                 material's base colour (when not textured) and
                                                 whether it is textured, UV layers per object
@@ -58,7 +58,7 @@ def look(path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if path.endswith(".obj"):
         bpy.ops.wm.obj_import(filepath=path)
-    elif path.endswith((".usda", ".usdc", ".usd")):
+    elif path.endswith((".usda", ".usdc", ".usd", ".usdz")):
         bpy.ops.wm.usd_import(filepath=path)
     else:
         bpy.ops.import_scene.gltf(filepath=path)

@@ -245,12 +245,31 @@ fn material_looks(
     out
 }
 
-/// The base-colour images of the scene's materials as `(material name, path relative to the
-/// output, image)`: `<output stem>_textures/<image file name>`, names made unique.
-fn texture_files<'a>(
-    scene: &'a ImportedScene,
-    out: &Path,
-) -> Vec<(String, String, &'a TextureImage)> {
+/// What a texture image is to its material's UsdPreviewSurface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TextureRole {
+    BaseColour,
+    Normal,
+    Opacity,
+}
+
+impl TextureRole {
+    /// The bridge's material key for this role's asset path.
+    fn key(self) -> &'static str {
+        match self {
+            TextureRole::BaseColour => "texture",
+            TextureRole::Normal => "normal_texture",
+            TextureRole::Opacity => "opacity_texture",
+        }
+    }
+}
+
+/// A texture a stage refers to: its material, role, path relative to the output, image.
+type TextureFile<'a> = (String, TextureRole, String, &'a TextureImage);
+
+/// The base-colour, normal and opacity images of the scene's materials, each at
+/// `<output stem>_textures/<image file name>`, names made unique.
+fn texture_files<'a>(scene: &'a ImportedScene, out: &Path) -> Vec<TextureFile<'a>> {
     let stem = out
         .file_stem()
         .map_or_else(|| "baked".to_owned(), |s| s.to_string_lossy().into_owned());
@@ -258,8 +277,16 @@ fn texture_files<'a>(
     scene
         .materials
         .iter()
-        .filter_map(|m| m.base_colour_texture.as_ref().map(|t| (&m.name, t)))
-        .map(|(material, image)| {
+        .flat_map(|m| {
+            [
+                (TextureRole::BaseColour, &m.base_colour_texture),
+                (TextureRole::Normal, &m.normal_texture),
+                (TextureRole::Opacity, &m.opacity_texture),
+            ]
+            .into_iter()
+            .filter_map(move |(role, t)| t.as_ref().map(|t| (&m.name, role, t)))
+        })
+        .map(|(material, role, image)| {
             let file = Path::new(&image.name).file_name().map_or_else(
                 || "texture".to_owned(),
                 |f| f.to_string_lossy().into_owned(),
@@ -284,7 +311,12 @@ fn texture_files<'a>(
                 name = format!("{clean}_{k}{ext}");
                 k += 1;
             }
-            (material.clone(), format!("{stem}_textures/{name}"), image)
+            (
+                material.clone(),
+                role,
+                format!("{stem}_textures/{name}"),
+                image,
+            )
         })
         .collect()
 }
@@ -364,9 +396,10 @@ fn output_extension(path: &Path) -> Result<&'static str, PluginError> {
         Some("usda") => Ok("usda"),
         Some("usdc") => Ok("usdc"),
         Some("usd") => Ok("usd"),
+        Some("usdz") => Ok("usdz"),
         _ => Err(PluginError::invalid(
             path,
-            "USD export writes .usda, .usdc or .usd (usdz is read-only here)",
+            "USD export writes .usda, .usdc, .usd or .usdz",
         )),
     }
 }
@@ -440,11 +473,8 @@ impl UsdExporter {
         } else {
             let mut taken = HashSet::new();
             let looks = material_looks(scene, &items);
-            let textures = if output_extension(out)? == "usdz" {
-                Vec::new()
-            } else {
-                texture_files(scene, out)
-            };
+            let textures = texture_files(scene, out);
+            let usdz = output_extension(out)? == "usdz";
             with_bridge(out, |py, bridge| {
                 let to_err = |e: PyErr| plugin_error(py, e, IoErrorKind::Io, out);
                 let list = PyList::empty(py);
@@ -504,16 +534,26 @@ impl UsdExporter {
                     m.set_item("base_colour", look.base_colour.to_vec())
                         .map_err(to_err)?;
                     m.set_item("roughness", look.roughness).map_err(to_err)?;
-                    let texture = textures
-                        .iter()
-                        .find(|(material, _, _)| material == &look.name)
-                        .map(|(_, rel, _)| format!("./{rel}"));
-                    m.set_item("texture", texture).map_err(to_err)?;
+                    for (material, role, rel, _) in &textures {
+                        if material == &look.name {
+                            m.set_item(role.key(), format!("./{rel}")).map_err(to_err)?;
+                        }
+                    }
                     materials.append(m).map_err(to_err)?;
                 }
                 let spec = PyDict::new(py);
                 spec.set_item("meshes", list).map_err(to_err)?;
                 spec.set_item("materials", materials).map_err(to_err)?;
+                if usdz {
+                    // A package holds its images: the bridge packs them with the layer.
+                    let files = PyList::empty(py);
+                    for (_, _, rel, image) in &textures {
+                        files
+                            .append((rel, PyBytes::new(py, &image.bytes)))
+                            .map_err(to_err)?;
+                    }
+                    spec.set_item("texture_files", files).map_err(to_err)?;
+                }
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
                 spec.set_item("frame_count", baked.frame_count)
                     .map_err(to_err)?;
@@ -541,7 +581,7 @@ impl Exporter for UsdExporter {
     }
 
     fn extensions(&self) -> &[&str] {
-        &["usda", "usdc", "usd"]
+        &["usda", "usdc", "usd", "usdz"]
     }
 
     fn export(
@@ -562,7 +602,7 @@ impl Exporter for UsdExporter {
         // Texture images beside a new stage, where its materials' asset paths point.
         if scene.source.importer != "usd" && ext != "usdz" {
             let folder = out.parent().unwrap_or(Path::new(""));
-            for (_, rel, image) in texture_files(scene, out) {
+            for (_, _, rel, image) in texture_files(scene, out) {
                 files.push(OutputFile {
                     path: folder.join(rel),
                     bytes: image.bytes.clone(),
@@ -590,6 +630,7 @@ mod tests {
     fn output_extension_picks_the_format() {
         assert_eq!(output_extension(Path::new("a.USDA")).unwrap(), "usda");
         assert_eq!(output_extension(Path::new("a.usdc")).unwrap(), "usdc");
-        assert!(output_extension(Path::new("a.usdz")).is_err());
+        assert_eq!(output_extension(Path::new("a.usdz")).unwrap(), "usdz");
+        assert!(output_extension(Path::new("a.usdx")).is_err());
     }
 }

@@ -360,7 +360,12 @@ def _set_stage_timing(stage, spec):
     stage.SetEndTimeCode(float(max(spec["frame_count"] - 1, 0)))
 
 
-def _export(stage, out_path):
+def _export(stage, out_path, texture_files=None):
+    """Writes the stage's root layer to `out_path`: .usda, .usdc, or a .usdz package (with
+    `texture_files` and what its asset paths name)."""
+    if out_path.lower().endswith(".usdz"):
+        _export_usdz(stage, out_path, texture_files or [])
+        return
     try:
         ok = stage.GetRootLayer().Export(out_path)
     except Exception as e:
@@ -438,24 +443,52 @@ def _define_materials(stage, materials):
         diffuse.Set(Gf.Vec3f(r, g, b))
         if m.get("texture"):
             # The image through the mesh's `st`, scaled by the colour (white when textured).
-            reader = UsdShade.Shader.Define(stage, path + "/stReader")
-            reader.CreateIdAttr("UsdPrimvarReader_float2")
-            reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
-            image = UsdShade.Shader.Define(stage, path + "/BaseColour")
-            image.CreateIdAttr("UsdUVTexture")
-            image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(m["texture"])
-            image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
-                reader.ConnectableAPI(), "result"
-            )
+            image = _uv_texture(stage, path, "BaseColour", m["texture"], "sRGB")
             image.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(r, g, b, 1.0))
             image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
             diffuse.ConnectToSource(image.ConnectableAPI(), "rgb")
-        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
+        if m.get("normal_texture"):
+            # A tangent-space normal map: [0, 1] texels to [-1, 1] (UsdPreviewSurface's rule).
+            image = _uv_texture(stage, path, "Normal", m["normal_texture"], "raw")
+            image.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(2, 2, 2, 1))
+            image.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(-1, -1, -1, 0))
+            image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+            shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(
+                image.ConnectableAPI(), "rgb"
+            )
+        opacity = shader.CreateInput("opacity", Sdf.ValueTypeNames.Float)
+        opacity.Set(a)
+        if m.get("opacity_texture"):
+            # A grey opacity image (OBJ's map_d): its red channel, scaled by the alpha.
+            image = _uv_texture(stage, path, "Opacity", m["opacity_texture"], "raw")
+            image.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(a, a, a, a))
+            image.CreateOutput("r", Sdf.ValueTypeNames.Float)
+            opacity.ConnectToSource(image.ConnectableAPI(), "r")
         shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m["roughness"]))
         shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
         material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
         looks[m["name"]] = material
     return looks
+
+
+def _uv_texture(stage, material_path, name, asset, colour_space):
+    """A UsdUVTexture of `asset` read through the mesh's `st` (one primvar reader per
+    material)."""
+    reader_path = material_path + "/stReader"
+    reader = UsdShade.Shader.Get(stage, reader_path)
+    if not reader:
+        reader = UsdShade.Shader.Define(stage, reader_path)
+        reader.CreateIdAttr("UsdPrimvarReader_float2")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+        reader.CreateOutput("result", Sdf.ValueTypeNames.Float2)
+    image = UsdShade.Shader.Define(stage, material_path + "/" + name)
+    image.CreateIdAttr("UsdUVTexture")
+    image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(asset)
+    image.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set(colour_space)
+    image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
+        reader.ConnectableAPI(), "result"
+    )
+    return image
 
 
 def _bind_materials(mesh, faces, looks, face_count):
@@ -512,7 +545,55 @@ def write_new_stage(out_path, spec):
         _author_frames(mesh, item, frame_count, location)
     _author_particles(stage, spec.get("particles"), "/root")
     _set_stage_timing(stage, spec)
-    _export(stage, out_path)
+    _export(stage, out_path, spec.get("texture_files"))
+
+
+def _export_usdz(stage, out_path, texture_files):
+    """A .usdz holding the layer and the images its asset paths name (UsdUtils packs them):
+    the layer and `texture_files` (relative path, bytes) are written to a temporary folder
+    first, at the relative paths the materials use."""
+    import tempfile
+
+    from pxr import UsdUtils
+
+    with tempfile.TemporaryDirectory() as folder:
+        layer = os.path.join(folder, "baked.usdc")
+        for rel, data in texture_files:
+            target = os.path.join(folder, rel)
+            os.makedirs(os.path.dirname(target), exist_ok=True)
+            with open(target, "wb") as f:
+                f.write(data)
+        _export(stage, layer)
+        try:
+            ok = UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(layer), out_path)
+        except Exception as e:
+            raise BridgeError("usd-core cannot write the .usdz package: " + _clean_tf_message(e))
+        if not ok:
+            raise BridgeError("usd-core cannot write the .usdz package")
+    _clear_zip_times(out_path)
+
+
+def _clear_zip_times(path):
+    """Sets every entry's modification time in a zip (a .usdz) to 1980-01-01 00:00, the
+    zip format's epoch: usd-core stamps the packing time, and the same bake must give the same
+    bytes. Only the 4 time bytes of each local and central header change (the CRCs do not
+    cover them, the 64-byte alignment stays)."""
+    import struct
+
+    with open(path, "rb") as f:
+        data = bytearray(f.read())
+    epoch = struct.pack("<HH", 0, (0 << 9) | (1 << 5) | 1)
+    at = 0
+    while at + 30 <= len(data) and data[at:at + 4] == b"PK\x03\x04":
+        data[at + 10:at + 14] = epoch
+        size, _, name, extra = struct.unpack_from("<IIHH", data, at + 18)
+        at += 30 + name + extra + size
+    while at + 46 <= len(data) and data[at:at + 4] == b"PK\x01\x02":
+        data[at + 12:at + 16] = epoch
+        name, extra, comment = struct.unpack_from("<HHH", data, at + 28)
+        at += 46 + name + extra + comment
+    with open(path, "wb") as f:
+        f.write(data)
 
 def _author_particles(stage, particles, parent):
     """One UsdGeom.Points per emitter under `parent`/particles: points, widths, ids, extent

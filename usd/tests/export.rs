@@ -277,12 +277,12 @@ fn bad_bakes_are_rejected_before_writing() {
     assert!(err.message.contains("frame 1"), "{err}");
 
     let baked = bake(&scene, 2, 24.0);
-    let usdz = ExportSettings {
-        path: PathBuf::from("x.usdz"),
+    let other = ExportSettings {
+        path: PathBuf::from("x.usdx"),
         cache: CacheKind::Morph,
         axes: Default::default(),
     };
-    assert!(UsdExporter.export(&scene, &baked, &usdz).is_err());
+    assert!(UsdExporter.export(&scene, &baked, &other).is_err());
 }
 
 #[test]
