@@ -103,12 +103,22 @@ fn a_gltfs_materials_reach_a_usd_bake() {
     );
 }
 
+/// glTF → `name` (USD), then that USD → glTF again (its textures read from the layer's
+/// folder or the package): Blender sees the texture and the colours at both steps.
 fn a_gltfs_materials_reach(d: &std::path::Path, name: &str) {
     let usda = d.join(name);
     let o = bake(&d.join("props.glb"), &usda, "4");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let want = look(&d.join("props.glb"));
-    let got = look(&usda);
+    let back = d.join(format!("{name}.glb"));
+    let o = bake(&usda, &back, "2");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_gltf_valid(&back);
+    for file in [&usda, &back] {
+        same_look(&look(&d.join("props.glb")), &look(file));
+    }
+}
+
+fn same_look(want: &serde_json::Value, got: &serde_json::Value) {
     assert_eq!(got["objects"], want["objects"], "{got}");
     assert_eq!(got["materials"]["Brick"]["textured"], true, "{got}");
     let (w, g) = (
@@ -200,5 +210,20 @@ fn normal_and_opacity_maps_reach_a_usd_bake() {
         );
         assert_eq!(brick["opacity"]["output"], "r", "{maps}");
         assert!(maps["Blue"].as_object().unwrap().is_empty(), "{maps}");
+    }
+    // A USD source baked into another folder: its maps are named relative to the new layer
+    // (flattening made them absolute), and resolve.
+    std::fs::create_dir(d.join("again")).unwrap();
+    let again = d.join("again").join("again.usda");
+    let o = bake(&d.join("maps.usda"), &again, "2");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let maps = last_json_line(&run_python_client(
+        "usd_material_maps.py",
+        &[again.to_str().unwrap()],
+    ));
+    for input in ["diffuseColor", "normal", "opacity"] {
+        let map = &maps["Brick"][input];
+        assert_eq!(map["resolves"], true, "{input}: {maps}");
+        assert!(map["file"].as_str().unwrap().starts_with("../"), "{maps}");
     }
 }

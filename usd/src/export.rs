@@ -449,6 +449,11 @@ impl UsdExporter {
                     list.append(d).map_err(to_err)?;
                 }
                 spec.set_item("meshes", list).map_err(to_err)?;
+                // The folder the output will be in (it is written to a temporary file first).
+                let folder =
+                    std::path::absolute(out.parent().unwrap_or(Path::new("."))).unwrap_or_default();
+                spec.set_item("output_folder", folder.to_string_lossy().into_owned())
+                    .map_err(to_err)?;
                 spec.set_item("fps", baked.fps).map_err(to_err)?;
                 spec.set_item("frame_count", baked.frame_count)
                     .map_err(to_err)?;

@@ -4,7 +4,9 @@
 use crate::mesh::{build_display_mesh, Interpolation, RawMesh, RawPrimvar};
 use crate::python::{floats_of, ints_of, plugin_error, with_bridge};
 use pyo3::prelude::*;
-use springbake_core::display::{ImportedScene, SourceDocument, SurfaceMaterial, UpAxis};
+use springbake_core::display::{
+    ImportedScene, SourceDocument, SurfaceMaterial, TextureImage, UpAxis,
+};
 use springbake_core::plugin::{ImportSettings, Importer, IoErrorKind, PluginError};
 use std::path::{Path, PathBuf};
 
@@ -138,10 +140,28 @@ pub fn read_stage(path: &Path, root: &Path, include_hidden: bool) -> Result<RawS
             for m in list.flatten() {
                 let look = (|| -> PyResult<SurfaceMaterial> {
                     let c: [f32; 4] = m.get_item("base_colour")?.extract()?;
+                    let texture = m.get_item("texture")?;
+                    let base_colour_texture = if texture.is_none() {
+                        None
+                    } else {
+                        let name: String = texture.get_item("name")?.extract()?;
+                        let bytes: Vec<u8> = texture.get_item("bytes")?.extract()?;
+                        let mime = if bytes.starts_with(&[0x89, b'P', b'N', b'G']) {
+                            "image/png"
+                        } else {
+                            "image/jpeg"
+                        };
+                        Some(TextureImage {
+                            name,
+                            mime: mime.to_owned(),
+                            bytes,
+                        })
+                    };
                     Ok(SurfaceMaterial {
                         name: m.get_item("name")?.extract()?,
                         base_colour: c,
                         roughness: m.get_item("roughness")?.extract()?,
+                        base_colour_texture,
                         ..SurfaceMaterial::default()
                     })
                 })();

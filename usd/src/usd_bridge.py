@@ -19,7 +19,7 @@ import array
 import os
 import re
 
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 
 class BridgeError(Exception):
@@ -148,9 +148,40 @@ def _primvar_data(primvar, time, location):
 _UV_TYPES = ("texCoord2f[]", "texCoord2d[]", "texCoord2h[]")
 
 
-def _material_look(material):
-    """A bound material's UsdPreviewSurface values (diffuse colour, opacity, roughness), or
-    None when its surface is another kind of shader."""
+# Largest texture image read from a USD source.
+_MAX_TEXTURE_BYTES = 256 * 1024 * 1024
+
+
+def _diffuse_texture(shader, root):
+    """The image feeding a UsdPreviewSurface's diffuseColor through a UsdUVTexture:
+    {"name", "bytes"} (read through usd-core's resolver, so a file inside a .usdz works
+    too), or None: not textured, not PNG/JPEG, unreadable, too large, or outside `root`."""
+    diffuse = shader.GetInput("diffuseColor")
+    source = diffuse.GetConnectedSource() if diffuse else None
+    if not source:
+        return None
+    texture = UsdShade.Shader(source[0].GetPrim())
+    if texture.GetIdAttr().Get() != "UsdUVTexture" or not texture.GetInput("file"):
+        return None
+    asset = texture.GetInput("file").Get()
+    resolved = asset.resolvedPath if asset else ""
+    if not resolved:
+        return None
+    outer = os.path.realpath(resolved.split("[", 1)[0])
+    if not _inside(outer, os.path.realpath(root)):
+        return None
+    name = os.path.basename(asset.path)
+    if not name.lower().endswith((".png", ".jpg", ".jpeg")):
+        return None
+    opened = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+    if opened is None or opened.GetSize() > _MAX_TEXTURE_BYTES:
+        return None
+    return {"name": name, "bytes": bytes(opened.GetBuffer())}
+
+
+def _material_look(material, root="."):
+    """A bound material's UsdPreviewSurface values (diffuse colour, opacity, roughness, the
+    diffuse texture), or None when its surface is another kind of shader."""
     try:
         shader = material.ComputeSurfaceSource()[0]
         if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
@@ -162,10 +193,14 @@ def _material_look(material):
             return default if got is None else got
 
         c = value("diffuseColor", Gf.Vec3f(0.18, 0.18, 0.18))
+        texture = _diffuse_texture(shader, root)
+        if texture is not None:
+            c = Gf.Vec3f(1.0, 1.0, 1.0)  # glTF multiplies the image by the factor
         return {
             "name": material.GetPrim().GetName(),
             "base_colour": [float(c[0]), float(c[1]), float(c[2]), float(value("opacity", 1.0))],
             "roughness": float(value("roughness", 0.5)),
+            "texture": texture,
         }
     except Exception:
         return None
@@ -255,7 +290,7 @@ def read_stage(path, root, include_hidden=False):
             bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
             if bound:
                 material = bound.GetPrim().GetName()
-                looks.setdefault(material, _material_look(bound))
+                looks.setdefault(material, _material_look(bound, root))
         except Exception:
             material = None
         # Materials bound per face through GeomSubsets (family materialBind).
@@ -266,7 +301,7 @@ def read_stage(path, root, include_hidden=False):
                 faces = subset.GetIndicesAttr().Get(time)
                 if bound and faces is not None:
                     subsets.append((bound.GetPrim().GetName(), _flat(faces, "i")))
-                    looks.setdefault(bound.GetPrim().GetName(), _material_look(bound))
+                    looks.setdefault(bound.GetPrim().GetName(), _material_look(bound, root))
         except Exception:
             subsets = []
         world = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time)
@@ -380,6 +415,18 @@ def write_source_stage(source_path, out_path, spec):
         flat_layer = source.Flatten()
     except Exception as e:
         raise BridgeError("usd-core cannot flatten the source stage: " + _clean_tf_message(e))
+    folder = spec.get("output_folder")
+    if folder and not out_path.lower().endswith(".usdz"):
+        # Flattening anchors the source's asset paths (textures) as absolute paths: written
+        # relative to the output's folder, the bake and its source's files move together.
+        from pxr import UsdUtils
+
+        def relative(asset):
+            if os.path.isabs(asset) and "[" not in asset:
+                return os.path.relpath(asset, folder)
+            return asset
+
+        UsdUtils.ModifyAssetPaths(flat_layer, relative)
     stage = Usd.Stage.Open(flat_layer)
     frame_count = int(spec["frame_count"])
     # A baked mesh inside a native instance gets points of its own: its instance stops
