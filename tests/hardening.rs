@@ -214,6 +214,12 @@ fn bakes_over_budget_are_refused_before_the_simulation_with_the_cause() {
     .unwrap();
     let o = springbake(&["bake", scene.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // ... and says it is small before it starts (a unit slip shows before the bake).
+    assert!(
+        stderr(&o).contains("\"Cone\" is 2.0 cm across (the source's unit is 1 m)"),
+        "{}",
+        stderr(&o)
+    );
     // A plane cage with absurd cells is refused before it is built.
     std::fs::write(
         &scene,

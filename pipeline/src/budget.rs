@@ -176,6 +176,37 @@ pub fn large_output_note(prepared: &Prepared, scene: &SceneFile, output: &Path) 
     ))
 }
 
+/// Bodies smaller than this (largest lattice side, metres) get a note: usually a unit slip
+/// (a centimetre USD stage, a millimetre CAD export), not a 3 cm prop.
+pub const SMALL_BODY_M: f64 = 0.05;
+
+/// A note per body smaller than [`SMALL_BODY_M`]: its size in metres and the unit the
+/// source was read in, so a unit slip is seen before the bake rather than after.
+pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
+    let unit = prepared.export_scene.meters_per_unit;
+    prepared
+        .bodies
+        .iter()
+        .filter_map(|b| {
+            let size = b
+                .lattice
+                .dims
+                .iter()
+                .map(|&d| f64::from(d) * b.lattice.cell_size)
+                .fold(0.0, f64::max);
+            (size > 0.0 && size < SMALL_BODY_M).then(|| {
+                format!(
+                    "body \"{}\" is {:.1} cm across (the source's unit is {unit} m): it is \
+                     simulated at that real size; if it should be bigger, scale it in the source \
+                     (or set the stage's metersPerUnit)",
+                    b.name,
+                    size * 100.0
+                )
+            })
+        })
+        .collect()
+}
+
 /// Refuses a bake whose estimated memory is over `limit` bytes.
 pub fn check_memory(
     prepared: &Prepared,

@@ -586,6 +586,9 @@ pub fn bake(
         if let Some(text) = budget::large_output_note(&prepared, &loaded.scene, &output) {
             note(&text);
         }
+        for text in budget::small_body_notes(&prepared) {
+            note(&text);
+        }
     }
     budget::check_memory(
         &prepared,
