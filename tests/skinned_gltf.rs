@@ -10,28 +10,14 @@
 
 mod support;
 
-use support::{springbake_in, stderr};
+use support::bake_file;
 
 #[test]
 fn a_skinned_gltf_bakes_from_its_first_frame_pose_and_loses_its_skin_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let source = dir.path().join("skinned.glb");
     springbake_testkit::run_python_client("make_skinned_gltf.py", &[source.to_str().unwrap()]);
-    let out = springbake_in(
-        dir.path(),
-        &[
-            "bake",
-            "skinned.glb",
-            "-o",
-            "baked.glb",
-            "--frames",
-            "24",
-            "--progress",
-            "quiet",
-        ],
-    );
-    let err = stderr(&out);
-    assert!(out.status.success(), "{err}");
+    let err = bake_file(dir.path(), "skinned.glb", "baked.glb", "24");
     assert!(
         err.contains("skinned") && err.contains("morph targets"),
         "{err}"

@@ -11,7 +11,7 @@
 
 mod support;
 
-use support::{springbake_in, stderr};
+use support::{bake_file, springbake_in, stderr};
 
 fn motion(stage: &std::path::Path) -> serde_json::Value {
     let out =
@@ -25,21 +25,7 @@ fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
     let d = dir.path();
     let source = d.join("stage.usda");
     springbake_testkit::run_python_client("make_instanced_usd.py", &[source.to_str().unwrap()]);
-    let out = springbake_in(
-        d,
-        &[
-            "bake",
-            "stage.usda",
-            "-o",
-            "baked.usda",
-            "--frames",
-            "24",
-            "--progress",
-            "quiet",
-        ],
-    );
-    let err = stderr(&out);
-    assert!(out.status.success(), "{err}");
+    let err = bake_file(d, "stage.usda", "baked.usda", "24");
     assert!(
         err.contains("2 mesh(es) not simulated")
             && err.contains("/World/Scatter/Prototypes/Pebble (a PointInstancer prototype)")

@@ -15,6 +15,17 @@ fn scene_text(source: &Path, frames: usize) -> String {
     )
 }
 
+/// The example cube copied into `dir`.
+fn example_cube(dir: &Path) -> std::path::PathBuf {
+    let source = dir.join("cube.obj");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
+        &source,
+    )
+    .unwrap();
+    source
+}
+
 /// Start the watcher with JSON events; lines arrive on the returned channel.
 fn start(scene: &Path) -> (Child, Receiver<serde_json::Value>) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_springbake"))
@@ -64,12 +75,7 @@ fn morph_targets(glb: &Path) -> usize {
 #[test]
 fn watch_rebakes_on_edits_survives_a_broken_scene_and_stops_cleanly() {
     let dir = tempfile::tempdir().unwrap();
-    let source = dir.path().join("cube.obj");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
-        &source,
-    )
-    .unwrap();
+    let source = example_cube(dir.path());
     let scene = dir.path().join("scene.toml");
     std::fs::write(&scene, scene_text(&source, 4)).unwrap();
     let out = dir.path().join("out.glb");
@@ -137,12 +143,7 @@ fn watch_rebakes_on_edits_survives_a_broken_scene_and_stops_cleanly() {
 #[test]
 fn watch_reloads_an_edited_plugin() {
     let dir = tempfile::tempdir().unwrap();
-    let source = dir.path().join("cube.obj");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cube.obj"),
-        &source,
-    )
-    .unwrap();
+    let source = example_cube(dir.path());
     let plugin = |mark: &str| {
         format!(
             "import json\n\nSPRINGBAKE_PLUGIN = {{'kind': 'exporter', 'name': 'marker', 'extensions': ['mark']}}\n\

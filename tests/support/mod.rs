@@ -68,3 +68,22 @@ pub fn bake_scene(dir: &Path, file: &str, scene: &str) {
     std::fs::write(dir.join(file), scene).expect("write the scene");
     succeeded(&springbake_in(dir, &["bake", file, "--progress", "quiet"]));
 }
+
+/// Bakes `input` in `dir` to `output` for `frames` frames, quietly; panics with the CLI's
+/// stderr if it fails, else returns that stderr (its notes).
+pub fn bake_file(dir: &Path, input: &str, output: &str, frames: &str) -> String {
+    let args = [
+        "bake",
+        input,
+        "-o",
+        output,
+        "--frames",
+        frames,
+        "--progress",
+        "quiet",
+    ];
+    let out = springbake_in(dir, &args);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    err
+}
