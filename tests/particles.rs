@@ -167,3 +167,111 @@ fn a_gltf_bake_writes_its_particles_beside_it_and_the_same_scene_the_same_bytes(
     );
     assert!(!d.join("wrong.usda").exists());
 }
+
+/// Emitters started and stopped by events (issue 20: "a body that hits the floor hard enough
+/// bursts into an explosion"): a ball falls onto the floor; its landing starts a burst that
+/// waits for it (`wait_for_event`, following the ball) and a time event stops a fountain.
+/// No dust before the landing frame, the whole burst on it, at the ball; the fountain's count
+/// stops growing once stopped and its last particles die.
+#[test]
+fn events_start_a_burst_on_landing_and_stop_a_stream() {
+    let dir = with_icosphere();
+    let d = dir.path();
+    let scene = r#"
+[output]
+path = "ev.usda"
+frames = 48
+
+[world]
+floor = 0.0
+
+[[body]]
+name = "ball"
+source = "icosphere.glb"
+cells = 6
+
+[[emitter]]
+name = "dust"
+kind = "explosion"
+follow = "ball"
+wait_for_event = true
+count = 400
+speed = [0.5, 1.0]
+lifetime = [3.0, 3.0]
+
+[[emitter]]
+name = "jet"
+kind = "fountain"
+position = [1, 0, 0]
+rate = 240
+lifetime = [0.2, 0.2]
+
+[[event]]
+name = "land"
+body = "ball"
+on = { collision = "floor" }
+procedure = { start_emitter = "dust" }
+
+[[event]]
+name = "tap"
+body = "ball"
+on = { time = 0.5 }
+procedure = { stop_emitter = "jet" }
+"#;
+    std::fs::write(d.join("ev.toml"), scene).unwrap();
+    let out = springbake_in(
+        d,
+        &[
+            "bake",
+            "ev.toml",
+            "--progress",
+            "quiet",
+            "--report",
+            "r.json",
+        ],
+    );
+    succeeded(&out);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("r.json")).unwrap()).unwrap();
+    let landing = report["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["event"] == "land")
+        .unwrap_or_else(|| panic!("the ball never landed: {report}"))["frame"]
+        .as_u64()
+        .unwrap() as usize;
+    // USD time code i is output frame i + 1.
+    let frames: Vec<String> = (0..48).map(|i| i.to_string()).collect();
+    let mut args = vec![d.join("ev.usda").to_str().unwrap().to_owned()];
+    args.extend(frames);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let usd = last_json_line(&run_python_client("particles_usd.py", &args));
+    let dust = column(&usd, "/root/particles/dust", 0);
+    assert!(
+        dust[..landing - 1].iter().all(|&c| c == 0.0),
+        "dust before the landing (frame {landing}): {dust:?}"
+    );
+    assert_eq!(
+        dust[landing - 1],
+        400.0,
+        "the burst on the landing frame: {dust:?}"
+    );
+    let jet = column(&usd, "/root/particles/jet", 0);
+    // stopped at 0.5 s (frame 13); 0.2 s lifetimes: none left from frame 19 on
+    assert!(jet[10] > 30.0, "the jet runs first: {jet:?}");
+    assert!(jet[20..].iter().all(|&c| c == 0.0), "stopped: {jet:?}");
+    // A start_emitter naming no emitter is refused before the bake.
+    std::fs::write(
+        d.join("bad.toml"),
+        scene.replace("start_emitter = \"dust\"", "start_emitter = \"dusty\""),
+    )
+    .unwrap();
+    let bad = springbake_in(d, &["bake", "bad.toml"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        support::stderr(&bad).contains("no [[emitter]] is named \"dusty\""),
+        "{}",
+        support::stderr(&bad)
+    );
+}

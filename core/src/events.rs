@@ -155,6 +155,11 @@ pub enum Procedure {
         pull_back_m: f64,
         duration_secs: f64,
     },
+    /// Start the named `[[emitter]]` now: a burst goes off, a stream begins (the host's
+    /// particles; the body is not changed).
+    StartEmitter(String),
+    /// Stop the named `[[emitter]]`'s stream now.
+    StopEmitter(String),
     /// A procedure registered by a plug-in on the host's registry, by name, with its own
     /// arguments (see `crate::procedures::ProcedurePlugin`).
     Plugin {
@@ -500,7 +505,10 @@ fn validate_procedure(p: &Procedure, loc: &str) -> Result<(), EventError> {
                 return bad("vector components must be finite");
             }
         }
-        Procedure::ChangeMaterial(n) | Procedure::FollowTrajectory(n) => {
+        Procedure::ChangeMaterial(n)
+        | Procedure::FollowTrajectory(n)
+        | Procedure::StartEmitter(n)
+        | Procedure::StopEmitter(n) => {
             if n.trim().is_empty() {
                 return bad("name must not be empty");
             }

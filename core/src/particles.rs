@@ -68,6 +68,9 @@ pub struct EmitterSection {
     /// When a stream stops, s (default: never).
     #[serde(default)]
     pub stop: Option<f64>,
+    /// Wait for an event's `start_emitter` (its `start` is not used then).
+    #[serde(default)]
+    pub wait_for_event: bool,
     /// Sphere, disc or ring radius, m.
     #[serde(default = "default_radius")]
     pub radius: f64,
@@ -214,8 +217,10 @@ pub struct ParticleEnv<'a> {
 struct Emitter {
     spec: EmitterSection,
     rng: fastrand::Rng,
-    /// Particles emitted so far.
+    /// Particles emitted so far (the next particle's id).
     emitted: u64,
+    /// Of those, the ones emitted before the stream was last started.
+    before_start: u64,
     /// A burst emitter has gone off.
     fired: bool,
 }
@@ -236,11 +241,18 @@ impl ParticleSystem {
         ParticleSystem {
             emitters: specs
                 .iter()
-                .map(|spec| Emitter {
-                    spec: spec.clone(),
-                    rng: fastrand::Rng::with_seed(spec.seed),
-                    emitted: 0,
-                    fired: false,
+                .map(|spec| {
+                    let mut spec = spec.clone();
+                    if spec.wait_for_event {
+                        spec.start = f64::INFINITY;
+                    }
+                    Emitter {
+                        rng: fastrand::Rng::with_seed(spec.seed),
+                        spec,
+                        emitted: 0,
+                        before_start: 0,
+                        fired: false,
+                    }
                 })
                 .collect(),
             position: Vec::new(),
@@ -296,7 +308,7 @@ impl ParticleSystem {
                 EmitterKind::Fountain | EmitterKind::Splash => {
                     let end = (time + dt).min(spec.stop.unwrap_or(f64::INFINITY));
                     let total = ((end - spec.start) * spec.rate).max(0.0).floor() as u64;
-                    total.saturating_sub(emitter.emitted)
+                    total.saturating_sub(emitter.emitted - emitter.before_start)
                 }
             };
             let room = MAX_PARTICLES.saturating_sub(self.position.len()) as u64;
@@ -419,6 +431,30 @@ impl ParticleSystem {
     }
 
     /// The emitters' names (given, else `<kind>_<index>`).
+    /// An event's `start_emitter`: the named emitter starts at `time` (a burst goes off
+    /// again, a stream begins or resumes). False when no emitter has the name.
+    pub fn start_emitter(&mut self, name: &str, time: f64) -> bool {
+        let Some(e) = self.names().iter().position(|n| n == name) else {
+            return false;
+        };
+        let emitter = &mut self.emitters[e];
+        emitter.spec.start = time;
+        emitter.spec.stop = emitter.spec.stop.filter(|&s| s > time);
+        emitter.fired = false;
+        emitter.before_start = emitter.emitted;
+        true
+    }
+
+    /// An event's `stop_emitter`: the named emitter's stream stops at `time`. False when no
+    /// emitter has the name.
+    pub fn stop_emitter(&mut self, name: &str, time: f64) -> bool {
+        let Some(e) = self.names().iter().position(|n| n == name) else {
+            return false;
+        };
+        self.emitters[e].spec.stop = Some(time);
+        true
+    }
+
     pub fn names(&self) -> Vec<String> {
         self.emitters
             .iter()

@@ -16,6 +16,7 @@
 //! | `follow_trajectory` | every node follows the named `[[trajectory]]` path's displacement (key times count from the firing), exactly or loosely by its `strength` |
 //! | `volume_scale` | squash and stretch: the body's volume is driven to `s ×` its rest volume (ramped at 2 V₀/s, Terasawa §3.2) |
 //! | `anticipate` | the trailing part of the body (nodes weighted 1 at the back to 0 at the front along `velocity`) is drawn back at `pull_back_m / duration_secs` for `duration_secs`, stretching the body against the coming throw; then `set_velocity(velocity)`, and the stretched springs snap it forward |
+//! | `start_emitter` / `stop_emitter` | starts the named `[[emitter]]` now (a burst goes off, a stream begins) / stops its stream; the host's particles do it, the body is unchanged |
 //! | `plugin` | the named [`ProcedurePlugin`] registered on the host's [`crate::plugin::Registry`]; it may change the nodes and returns built-in procedures (impulse, pin, material, …) applied after it |
 //!
 //! Motion features (`switch_feature`):
@@ -483,6 +484,8 @@ impl BodyMotion {
                 });
                 Ok(())
             }
+            // The host's particles act on these (`pipeline::effects`); the body is not changed.
+            Procedure::StartEmitter(_) | Procedure::StopEmitter(_) => Ok(()),
             Procedure::Plugin { name, args } => {
                 let plugin = ctx
                     .registry

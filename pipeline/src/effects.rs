@@ -8,6 +8,7 @@ use crate::simulate::Prepared;
 use crate::PipelineError;
 use springbake_core::bake::BakedParticles;
 use springbake_core::display::UpAxis;
+use springbake_core::events::{Firing, Procedure};
 use springbake_core::nalgebra::Vector3;
 use springbake_core::particles::{ParticleEnv, ParticleSystem};
 use springbake_core::plugin::Registry;
@@ -174,6 +175,25 @@ impl Effects {
         });
         for (record, frame) in self.recorded.iter_mut().zip(frames) {
             record.frames.push(frame);
+        }
+    }
+
+    /// Events' `start_emitter` / `stop_emitter` firings, at `time` (their frame's time).
+    pub fn trigger(&mut self, firings: &[Firing], time: f64) {
+        let Some(system) = self.system.as_mut() else {
+            return;
+        };
+        for f in firings {
+            // The names were checked against the emitters when the scene was validated.
+            match &f.procedure {
+                Procedure::StartEmitter(name) => {
+                    system.start_emitter(name, time);
+                }
+                Procedure::StopEmitter(name) => {
+                    system.stop_emitter(name, time);
+                }
+                _ => {}
+            }
         }
     }
 

@@ -87,12 +87,19 @@ pub fn validate(scene: &SceneFile) -> Result<(), String> {
         named_path(t).map_err(|e| format!("trajectory[{i}] \"{}\": {e}", t.name))?;
     }
     EventQueue::new(scene.event.clone()).map_err(|e| e.to_string())?;
+    let emitters = springbake_core::particles::ParticleSystem::new(&scene.emitter).names();
     for (i, e) in scene.event.iter().enumerate() {
         for (loc, p) in procedures_of(e) {
             let at = format!("event[{i}] \"{}\".{loc}", e.name);
             match p {
                 Procedure::ChangeMaterial(m) => {
                     Material::preset(m).map_err(|err| format!("{at}.change_material: {err}"))?;
+                }
+                Procedure::StartEmitter(n) | Procedure::StopEmitter(n) if !emitters.contains(n) => {
+                    return Err(format!(
+                        "{at}: no [[emitter]] is named \"{n}\"; emitters: {}",
+                        emitters.join(", ")
+                    ));
                 }
                 Procedure::FollowTrajectory(t) if !names.contains(t.as_str()) => {
                     return Err(format!(

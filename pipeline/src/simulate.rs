@@ -610,6 +610,11 @@ impl Prepared {
             // Events of frame 1 (t = 0) act before it is recorded, like every later frame's.
             events.after_frame(&mut self.world, 1, fps)?;
         }
+        let mut seen = 0;
+        if let Some(events) = self.events.as_ref() {
+            effects.trigger(events.log(), 0.0);
+            seen = events.log().len();
+        }
         effects.start(self);
         let mut first = self.world.diagnostics(1);
         first.max_penetration = self.current_penetration();
@@ -633,6 +638,12 @@ impl Prepared {
             }
             diagnostics.push(d);
             self.record(&mut meshes, with_lattice);
+            // Emitters an event of this frame started or stopped act from its time on (a
+            // burst goes off at the frame's end and is in its snapshot).
+            if let Some(events) = self.events.as_ref() {
+                effects.trigger(&events.log()[seen..], (f - 1) as f64 / fps);
+                seen = events.log().len();
+            }
             effects.advance(self, (f - 2) as f64 / fps, 1.0 / fps);
             if let Some(p) = hooks.progress.as_mut() {
                 p(f, total);
