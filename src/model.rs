@@ -3,13 +3,9 @@
 //! watertight glTF mesh a DCC opens and a scene can bake.
 
 use crate::Failure;
-use springbake_core::polygonise::polygonise;
-use springbake_core::superquadric::{Model, ShapesFile};
+use springbake_core::superquadric::{shapes_surface, ShapesFile};
 use std::path::Path;
 use std::time::Instant;
-
-/// Fraction of the model's size the default resolution is.
-const DEFAULT_CELLS_ACROSS: f64 = 128.0;
 
 pub fn run(shapes: &Path, output: &Path) -> Result<(), Failure> {
     let usage = |message: String| Failure { code: 2, message };
@@ -25,29 +21,12 @@ pub fn run(shapes: &Path, output: &Path) -> Result<(), Failure> {
             .unwrap_or_default();
         usage(format!("{}: {at}{}", shapes.display(), e.message()))
     })?;
-    let model = Model::new(&file.superquadrics, file.threshold)
-        .map_err(|e| usage(format!("{}: {e}", shapes.display())))?;
-    let (lo, hi) = model.bounds();
-    let resolution = file
-        .resolution
-        .unwrap_or_else(|| (hi - lo).max() / DEFAULT_CELLS_ACROSS);
     let start = Instant::now();
-    let surface =
-        polygonise(&model, resolution).map_err(|e| usage(format!("{}: {e}", shapes.display())))?;
+    let (surface, note) =
+        shapes_surface(&file).map_err(|e| usage(format!("{}: {e}", shapes.display())))?;
     let seconds = start.elapsed().as_secs_f64();
-    if surface.hidden_cells > 0 {
-        eprintln!(
-            "springbake: note: {} cells of {:.4} m may hide parts thinner than a cell (the \
-             refinement stopped at its budget); set a finer resolution to keep them",
-            surface.hidden_cells, surface.cell
-        );
-    }
-    if surface.triangles.is_empty() {
-        return Err(usage(format!(
-            "{}: the model has no surface at threshold {}",
-            shapes.display(),
-            file.threshold
-        )));
+    if let Some(note) = note {
+        eprintln!("springbake: note: {note}");
     }
     let f32s =
         |v: &[[f64; 3]]| -> Vec<[f32; 3]> { v.iter().map(|p| p.map(|c| c as f32)).collect() };

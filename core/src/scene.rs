@@ -382,12 +382,55 @@ impl<'de> Deserialize<'de> for SubstepSpec {
     }
 }
 
+/// A body's `source`: a mesh file, or a superquadric metaball model written inline
+/// (`source = { superquadric = [ { center = …, radii = … }, … ], threshold = 0.5 }`, the
+/// schema of `springbake model`'s shapes file; Terasawa §5.3), polygonised before the fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum SourceSpec {
+    File(PathBuf),
+    Superquadrics(crate::superquadric::ShapesFile),
+}
+
+impl SourceSpec {
+    /// The file, when the source is one.
+    pub fn file(&self) -> Option<&PathBuf> {
+        match self {
+            SourceSpec::File(p) => Some(p),
+            SourceSpec::Superquadrics(_) => None,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SourceSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct SourceVisitor;
+        impl<'de> Visitor<'de> for SourceVisitor {
+            type Value = SourceSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a mesh file path, or a table of superquadrics")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<SourceSpec, E> {
+                Ok(SourceSpec::File(PathBuf::from(v)))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<SourceSpec, A::Error> {
+                // The shapes file's own errors (unknown keys, wrong types) come through.
+                let shapes = crate::superquadric::ShapesFile::deserialize(
+                    de::value::MapAccessDeserializer::new(map),
+                )?;
+                Ok(SourceSpec::Superquadrics(shapes))
+            }
+        }
+        d.deserialize_any(SourceVisitor)
+    }
+}
+
 /// `[[body]]`
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySection {
-    /// Mesh file, relative to the scene file.
-    pub source: PathBuf,
+    /// Mesh file, relative to the scene file, or an inline superquadric model.
+    pub source: SourceSpec,
     /// Lattice cells along the longest side of the mesh's bounding box.
     #[serde(default)]
     pub cells: Option<u32>,
@@ -457,7 +500,7 @@ impl BodySection {
     /// A body with every default: rubber, 10 cells, no offset or velocity, springs `both`.
     pub fn new(source: impl Into<PathBuf>) -> BodySection {
         BodySection {
-            source: source.into(),
+            source: SourceSpec::File(source.into()),
             cells: None,
             cell_size: None,
             material: MaterialSpec::default(),

@@ -47,12 +47,43 @@ pub struct ShapesFile {
     /// Largest cell edge of the polygonisation, m (default: a 128th of the model's size).
     #[serde(default)]
     pub resolution: Option<f64>,
-    #[serde(rename = "superquadric", default)]
+    #[serde(rename = "superquadric", alias = "superquadrics", default)]
     pub superquadrics: Vec<Superquadric>,
 }
 
 fn half() -> f64 {
     0.5
+}
+
+/// Fraction of the model's size the default resolution is.
+pub const DEFAULT_CELLS_ACROSS: f64 = 128.0;
+
+/// A shapes file's surface: its model polygonised at its resolution (default: a 128th of
+/// the model's size), and a note when cells may hide parts thinner than a cell. An error when
+/// the model is invalid or has no surface at its threshold.
+pub fn shapes_surface(
+    file: &ShapesFile,
+) -> Result<(crate::polygonise::Surface, Option<String>), String> {
+    let model = Model::new(&file.superquadrics, file.threshold)?;
+    let (lo, hi) = model.bounds();
+    let resolution = file
+        .resolution
+        .unwrap_or_else(|| (hi - lo).max() / DEFAULT_CELLS_ACROSS);
+    let surface = crate::polygonise::polygonise(&model, resolution)?;
+    if surface.triangles.is_empty() {
+        return Err(format!(
+            "the model has no surface at threshold {}",
+            file.threshold
+        ));
+    }
+    let note = (surface.hidden_cells > 0).then(|| {
+        format!(
+            "{} cells of {:.4} m may hide parts thinner than a cell (the refinement stopped at \
+             its budget); set a finer resolution to keep them",
+            surface.hidden_cells, surface.cell
+        )
+    });
+    Ok((surface, note))
 }
 
 /// A model: primitives blended at a threshold.

@@ -34,7 +34,7 @@ pub use simulate::{prepare, Prepared, PreparedBody};
 use springbake_core::plugin::{
     CacheKind, ExportSettings, ImportSettings, IoErrorKind, OutputFile, PluginError, Registry,
 };
-use springbake_core::scene::{BodySection, CacheSpec, MaterialSpec, SceneFile};
+use springbake_core::scene::{BodySection, CacheSpec, MaterialSpec, SceneFile, SourceSpec};
 use springbake_core::solver::SimulationError;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -163,7 +163,10 @@ pub struct LoadedScene {
 impl LoadedScene {
     /// Absolute path of a body's source.
     pub fn source_path(&self, body: &BodySection) -> PathBuf {
-        self.base_dir.join(&body.source)
+        match &body.source {
+            SourceSpec::File(p) => self.base_dir.join(p),
+            SourceSpec::Superquadrics(_) => self.base_dir.join("(inline superquadrics)"),
+        }
     }
 
     /// The folder tree a bake may read from: the scene file's folder, or a bare mesh's own
@@ -216,7 +219,7 @@ impl LoadedScene {
     /// Every file the bake reads: the scene file and each body's source (for watch mode).
     pub fn inputs(&self) -> Vec<PathBuf> {
         let mut out: Vec<PathBuf> = self.scene_path.iter().cloned().collect();
-        for b in &self.scene.body {
+        for b in self.scene.body.iter().filter(|b| b.source.file().is_some()) {
             let p = self.source_path(b);
             if !out.contains(&p) {
                 out.push(p);

@@ -230,3 +230,44 @@ pub fn add_joints(
     }
     Ok(())
 }
+
+/// A `source = { superquadric = [...] }` body's mesh: the model polygonised
+/// (`springbake_core::superquadric::shapes_surface`) as a one-mesh scene in Y-up metres, its
+/// note (cells that may hide thin parts) kept. `path` names it in errors and outputs.
+pub fn superquadric_scene(
+    shapes: &springbake_core::superquadric::ShapesFile,
+    name: &str,
+    path: &std::path::Path,
+) -> Result<springbake_core::display::ImportedScene, String> {
+    use springbake_core::display::{DisplayMesh, ImportedScene, Primitive, SourceDocument, UpAxis};
+    let (surface, note) = springbake_core::superquadric::shapes_surface(shapes)?;
+    let f32s =
+        |v: &[[f64; 3]]| -> Vec<[f32; 3]> { v.iter().map(|p| p.map(|c| c as f32)).collect() };
+    let positions = f32s(&surface.positions);
+    let count = positions.len();
+    Ok(ImportedScene {
+        materials: Vec::new(),
+        notes: note.map(|n| format!("{name}: {n}")).into_iter().collect(),
+        meshes: vec![DisplayMesh {
+            name: name.to_owned(),
+            source_key: "superquadrics".to_owned(),
+            world_from_local: springbake_core::nalgebra::Matrix4::identity(),
+            primitives: vec![Primitive {
+                positions,
+                normals: Some(f32s(&surface.normals)),
+                uvs: None,
+                indices: surface.triangles.iter().flatten().copied().collect(),
+                material: None,
+            }],
+            source_point_of_vertex: Vec::new(),
+            source_point_count: count,
+        }],
+        up_axis: UpAxis::Y,
+        meters_per_unit: 1.0,
+        source: SourceDocument {
+            path: path.to_path_buf(),
+            importer: "superquadrics".to_owned(),
+            read_root: None,
+        },
+    })
+}

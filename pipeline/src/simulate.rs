@@ -13,7 +13,7 @@ use springbake_core::nalgebra::{Matrix4, Point3, Vector3};
 use springbake_core::plugin::Registry;
 use springbake_core::scene::{
     BodyKind, CacheSpec, IntegratorSpec, Interpolation as KeyInterpolation, PathInterpolation,
-    SceneFile, DEFAULT_CELLS,
+    SceneFile, SourceSpec, DEFAULT_CELLS,
 };
 use springbake_core::solver::manipulator::{ManipulatorKey, ManipulatorTrack};
 use springbake_core::solver::{
@@ -65,6 +65,19 @@ fn import_all(
     let mut scenes = Vec::new();
     for (i, body) in loaded.scene.body.iter().enumerate() {
         let path = loaded.source_path(body);
+        if let SourceSpec::Superquadrics(shapes) = &body.source {
+            let name = body.name.as_deref().unwrap_or("superquadrics");
+            let scene =
+                crate::models::superquadric_scene(shapes, name, &path).map_err(|message| {
+                    PipelineError::Body {
+                        body: i,
+                        source_path: path.clone(),
+                        message,
+                    }
+                })?;
+            scenes.push(scene);
+            continue;
+        }
         let importer = registry
             .importer_for(&path)
             .ok_or_else(|| PipelineError::Body {
