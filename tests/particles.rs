@@ -275,3 +275,58 @@ procedure = { stop_emitter = "jet" }
         support::stderr(&bad)
     );
 }
+
+/// Particles bounce off `[[collider]]`s too (issue 20: "bouncing off the floor, walls and
+/// colliders"): a burst 0.7 m above a 2 m square table top (a collider at 0.5 m) lands on it
+/// and stays on it; without the table the same burst falls to the floor.
+#[test]
+fn particles_land_on_a_collider() {
+    let dir = with_icosphere();
+    let d = dir.path();
+    std::fs::write(
+        d.join("table.obj"),
+        "o Table\nv -1 0.5 -1\nv 1 0.5 -1\nv 1 0.5 1\nv -1 0.5 1\nf 1 3 2\nf 1 4 3\n",
+    )
+    .unwrap();
+    let scene = |collider: &str| {
+        format!(
+            "[output]\npath = \"t.usda\"\nframes = 36\n[world]\nfloor = 0.0\n\
+             [[body]]\nsource = \"icosphere.glb\"\noffset = [5.0, 0.0, 0.0]\ncells = 4\n\
+             [[emitter]]\nname = \"grit\"\nkind = \"explosion\"\nposition = [0, 1.2, 0]\n\
+             radius = 0.2\ncount = 300\nspeed = [0.0, 0.3]\nlifetime = [5, 5]\n{collider}"
+        )
+    };
+    let lowest = |collider: &str| -> Vec<Option<f64>> {
+        std::fs::write(d.join("t.toml"), scene(collider)).unwrap();
+        succeeded(&springbake_in(
+            d,
+            &["bake", "t.toml", "--progress", "quiet"],
+        ));
+        let stage = d.join("t.usda");
+        let out = run_python_client(
+            "particles_heights.py",
+            &[stage.to_str().unwrap(), "0.8", "36"],
+        );
+        last_json_line(&out)["/root/particles/grit"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64())
+            .collect()
+    };
+    let on_table = lowest("[[collider]]\nsource = \"table.obj\"\n");
+    let ys: Vec<f64> = on_table.iter().flatten().copied().collect();
+    assert!(
+        ys.iter().all(|&y| y > 0.5 - 1e-4),
+        "through the table: {on_table:?}"
+    );
+    assert!(
+        ys.last().is_some_and(|&y| y < 0.52),
+        "landed on it: {on_table:?}"
+    );
+    let no_table = lowest("");
+    assert!(
+        no_table.iter().flatten().any(|&y| y < 0.1),
+        "without the table it reaches the floor: {no_table:?}"
+    );
+}

@@ -13,6 +13,7 @@ pub mod display;
 pub mod files;
 pub mod lattice;
 pub mod material;
+pub mod particle_colliders;
 pub mod particles;
 pub mod plugin;
 pub mod scene;

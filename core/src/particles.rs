@@ -92,7 +92,7 @@ pub struct EmitterSection {
     /// Linear air drag, 1/s (smoke defaults to 2, the others to 0).
     #[serde(default)]
     pub drag: Option<f64>,
-    /// Bounce off the floor and walls: normal restitution and Coulomb friction.
+    /// Bounce off the floor, walls and colliders: normal restitution and Coulomb friction.
     #[serde(default = "default_restitution")]
     pub restitution: f64,
     #[serde(default = "default_friction")]
@@ -195,6 +195,9 @@ impl EmitterSection {
     }
 }
 
+/// How far in front of a collider's face a particle that hit it is put back, m.
+const COLLIDER_SKIN: f64 = 1e-6;
+
 /// The particles of one emitter at one output frame, in birth order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ParticleFrame {
@@ -212,6 +215,8 @@ pub struct ParticleEnv<'a> {
     pub planes: &'a [Plane],
     /// Per emitter: the followed body's centre of mass now, when it follows one.
     pub follow: &'a [Option<V3>],
+    /// The scene's static colliders, when it has any.
+    pub colliders: Option<&'a crate::particle_colliders::TriangleGrid>,
 }
 
 struct Emitter {
@@ -378,7 +383,13 @@ impl ParticleSystem {
         {
             let spec = &emitters[e as usize].spec;
             *v += (env.gravity - *v * drag_of(spec)) * dt;
+            let from = *x;
             *x += *v * dt;
+            if let Some(hit) = env.colliders.and_then(|c| c.crossing(&from, x)) {
+                // Back on the collider's face it came from, bounced off it.
+                *x = hit.point + hit.normal * COLLIDER_SKIN;
+                *v = bounce(*v, &hit.normal, spec.restitution, spec.friction);
+            }
             for plane in env.planes {
                 let depth = plane.offset - plane.normal.dot(x);
                 if depth > 0.0 {
@@ -521,6 +532,7 @@ mod tests {
             up: V3::y(),
             planes,
             follow: &[],
+            colliders: None,
         }
     }
 

@@ -10,6 +10,7 @@ use springbake_core::bake::BakedParticles;
 use springbake_core::display::UpAxis;
 use springbake_core::events::{Firing, Procedure};
 use springbake_core::nalgebra::Vector3;
+use springbake_core::particle_colliders::TriangleGrid;
 use springbake_core::particles::{ParticleEnv, ParticleSystem};
 use springbake_core::plugin::Registry;
 use springbake_core::scene::SceneFile;
@@ -68,6 +69,8 @@ pub fn bind_force_fields(
 /// The emitters of one bake and what they recorded so far.
 pub struct Effects {
     system: Option<ParticleSystem>,
+    /// The static colliders the particles bounce off (simulation frame).
+    colliders: Option<TriangleGrid>,
     /// Per emitter: the index of the followed body in [`Prepared::bodies`].
     follow: Vec<Option<usize>>,
     recorded: Vec<BakedParticles>,
@@ -113,8 +116,22 @@ impl Effects {
                     .collect()
             })
             .unwrap_or_default();
+        let colliders = system.as_ref().and_then(|_| {
+            let triangles = prepared
+                .world
+                .colliders()
+                .iter()
+                .flat_map(|c| {
+                    c.triangles
+                        .iter()
+                        .map(|t| t.map(|i| c.positions[i as usize]))
+                })
+                .collect();
+            TriangleGrid::new(triangles)
+        });
         Ok(Effects {
             system,
+            colliders,
             follow,
             recorded,
         })
@@ -159,6 +176,7 @@ impl Effects {
             up: prepared.frame.up_vector(),
             planes: &world.settings.planes,
             follow: &centres,
+            colliders: self.colliders.as_ref(),
         };
         if dt > 0.0 {
             system.advance(time, dt, &env);
