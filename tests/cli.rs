@@ -528,3 +528,61 @@ fn a_baked_glb_shows_its_collider() {
         share * 100.0
     );
 }
+
+/// `[world.walls]` show as skirting boards around the room, in a simulated scene's screenshot
+/// and in a baked glb's (the walls travel in `extras.springbake_stage`), and not without walls.
+#[test]
+fn the_rooms_walls_show_in_screenshots() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(
+        springbake_testkit::corpus_dir().join("blender/icosphere.glb"),
+        d.join("icosphere.glb"),
+    )
+    .unwrap();
+    let scene = "[output]\npath = \"w.glb\"\nframes = 12\n[world]\nfloor = 0.0\n\
+        WALLS[[body]]\nsource = \"icosphere.glb\"\ncells = 4\n";
+    let walls = "[world.walls]\nmin = [-0.8, 0.0, -0.8]\nmax = [0.8, 3.0, 0.8]\n";
+    let grey_share = |text: &str, view: &str| -> f64 {
+        std::fs::write(d.join("w.toml"), scene.replace("WALLS", text)).unwrap();
+        let o = springbake(&[
+            "bake",
+            d.join("w.toml").to_str().unwrap(),
+            "--progress",
+            "quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let shot = d.join("w.png");
+        let input = d.join(view);
+        let args = [
+            "view",
+            input.to_str().unwrap(),
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--frame",
+            "12",
+            "--size",
+            "320x240",
+        ];
+        let o = springbake(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (width, height, buf) = decode_png(&std::fs::read(&shot).unwrap());
+        let grey = buf
+            .chunks(4)
+            .filter(|p| {
+                // the walls' lit grey (the HUD's text is brighter, the floor darker)
+                (80..=150).contains(&p[0])
+                    && (p[0] as i32 - p[2] as i32).abs() < 25
+                    && (p[1] as i32 - p[2] as i32).abs() < 25
+            })
+            .count();
+        grey as f64 / (width * height) as f64
+    };
+    for view in ["w.toml", "w.glb"] {
+        let (with, without) = (grey_share(walls, view), grey_share("", view));
+        assert!(
+            with > 0.01 && without < 0.002,
+            "{view}: walls {with}, none {without}"
+        );
+    }
+}

@@ -55,6 +55,34 @@ pub struct BakedStage {
     pub capsules: Vec<BakedCapsule>,
     /// Static colliders: triangle meshes.
     pub colliders: Vec<BakedCollider>,
+    /// The room's side walls (`[world.walls]`): the box's lowest and highest corner, Y-up
+    /// metres; its vertical extent is not used.
+    pub walls: Option<[[f64; 3]; 2]>,
+}
+
+/// The room box of a world's side-wall planes (every plane but the floor, whose normal is
+/// `up`): per horizontal axis the `+axis` plane's offset is the low side, the `−axis` plane's
+/// the high side; `None` without walls. Frame of the planes.
+pub fn room_of(
+    planes: &[crate::solver::Plane],
+    up: &nalgebra::Vector3<f64>,
+) -> Option<[[f64; 3]; 2]> {
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    let mut any = false;
+    for p in planes {
+        if (p.normal - up).norm() < 1e-9 {
+            continue;
+        }
+        let axis = p.normal.iamax();
+        if p.normal[axis] > 0.0 {
+            lo[axis] = p.offset;
+        } else {
+            hi[axis] = -p.offset;
+        }
+        any = true;
+    }
+    any.then_some([lo, hi])
 }
 
 /// A static collider's surface.

@@ -153,7 +153,7 @@ impl Exporter for GltfExporter {
 }
 
 /// The bake's surroundings as the document's `extras.springbake_stage` (Y-up metres, glTF's
-/// world frame): `floor` (height or null), `capsules` (`radius`, `length`, and per frame
+/// world frame): `floor` (height or null), `walls` (the room box's `[min, max]` or null), `capsules` (`radius`, `length`, and per frame
 /// `[cx, cy, cz, ax, ay, az]`: the axis segment's centre and direction) and `colliders`
 /// (`name`, flat `positions` and `triangles`, up to 20 000 triangles in all), for players that
 /// draw what the bodies moved against. Other extras of the source are kept.
@@ -190,8 +190,8 @@ fn add_stage(b: &mut DocBuilder, stage: &springbake_core::bake::BakedStage) {
             json!({"name": c.name, "positions": positions, "triangles": triangles})
         })
         .collect();
-    extras["springbake_stage"] =
-        json!({"floor": stage.floor, "capsules": capsules, "colliders": colliders});
+    extras["springbake_stage"] = json!({"floor": stage.floor, "capsules": capsules,
+        "colliders": colliders, "walls": stage.walls});
 }
 
 /// Most collider triangles recorded in a glTF's stage (the rest are left out).

@@ -710,10 +710,20 @@ impl Prepared {
                 triangles: c.triangles.clone(),
             })
             .collect();
+        let walls =
+            springbake_core::bake::room_of(&self.world.settings.planes, &self.world.settings.up)
+                .map(|[lo, hi]| {
+                    let (a, b) = (y_up(Vector3::from(lo)), y_up(Vector3::from(hi)));
+                    [
+                        std::array::from_fn(|k| a[k].min(b[k])),
+                        std::array::from_fn(|k| a[k].max(b[k])),
+                    ]
+                });
         BakedStage {
             floor: self.floor,
             capsules,
             colliders,
+            walls,
         }
     }
 

@@ -577,6 +577,57 @@ pub fn shadow_meshes(meshes: &[DrawMesh], up: Vector3<f64>, floor: f64) -> Vec<D
     out
 }
 
+/// The room's side walls drawn as skirting boards: a low strip (a twelfth of the room's
+/// width, at least 2 cm) along each side of the box `lo..hi` from `base` up along axis `up`,
+/// both faces, in the colliders' colour (ground: no shadow), so the room shows without
+/// hiding the bodies in it.
+pub fn wall_meshes(lo: [f64; 3], hi: [f64; 3], up: usize, base: f64) -> DrawMesh {
+    let (a, b) = match up {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let span = (hi[a] - lo[a]).max(hi[b] - lo[b]);
+    let height = (span / 12.0).max(0.02);
+    let corner = |u: f64, v: f64, h: f64| {
+        let mut p = Vector3::zeros();
+        p[a] = u;
+        p[b] = v;
+        p[up] = h;
+        p
+    };
+    let ring = [
+        (lo[a], lo[b]),
+        (hi[a], lo[b]),
+        (hi[a], hi[b]),
+        (lo[a], hi[b]),
+    ];
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for k in 0..4 {
+        let (p, q) = (ring[k], ring[(k + 1) % 4]);
+        let n = positions.len() as u32;
+        positions.extend([
+            corner(p.0, p.1, base),
+            corner(q.0, q.1, base),
+            corner(q.0, q.1, base + height),
+            corner(p.0, p.1, base + height),
+        ]);
+        triangles.extend([
+            [n, n + 1, n + 2],
+            [n, n + 2, n + 3],
+            [n, n + 2, n + 1],
+            [n, n + 3, n + 2],
+        ]);
+    }
+    DrawMesh {
+        texture: None,
+        positions,
+        triangles,
+        colour: COLLIDER_COLOUR,
+    }
+}
+
 /// A closed triangle mesh of a capsule: `segments` around the axis, `rings` per hemispherical
 /// cap (the cylinder is the band between the caps' equators).
 pub fn capsule_mesh(capsule: &Capsule, segments: u32, rings: u32, colour: [u8; 3]) -> DrawMesh {

@@ -4,7 +4,9 @@
 //! animation to the morph targets). A glTF without morph targets is a mesh to simulate. A
 //! lattice-skin glTF is drawn in its rest pose (skinning is not evaluated).
 
-use crate::raster::{capsule_mesh, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR, COLLIDER_COLOUR};
+use crate::raster::{
+    capsule_mesh, wall_meshes, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR, COLLIDER_COLOUR,
+};
 use crate::ViewerError;
 use serde_json::Value;
 use springbake_core::display::UpAxis;
@@ -101,6 +103,11 @@ impl Simulation {
             triangles: c.triangles.clone(),
             colour: COLLIDER_COLOUR,
         }));
+        let settings = &self.prepared.world.settings;
+        if let Some([lo, hi]) = springbake_core::bake::room_of(&settings.planes, &settings.up) {
+            let up = self.prepared.frame.up.index();
+            out.push(wall_meshes(lo, hi, up, self.prepared.floor.unwrap_or(0.0)));
+        }
         out
     }
 
@@ -142,7 +149,7 @@ pub struct BakedPlayback {
     pub floor: Option<f64>,
     /// The manipulators the bake recorded there.
     pub capsules: Vec<StageCapsule>,
-    /// The static colliders recorded there.
+    /// The static colliders recorded there, and the room's walls drawn low.
     pub colliders: Vec<DrawMesh>,
 }
 
@@ -250,7 +257,7 @@ fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>, Vec<DrawMe
             })
         })
         .collect();
-    let colliders = stage["colliders"]
+    let colliders: Vec<DrawMesh> = stage["colliders"]
         .as_array()
         .into_iter()
         .flatten()
@@ -284,6 +291,14 @@ fn read_stage(doc: &GltfDocument) -> (Option<f64>, Vec<StageCapsule>, Vec<DrawMe
                 })
         })
         .collect();
+    let mut colliders = colliders;
+    let corner = |v: &Value| -> Option<[f64; 3]> {
+        let a: Vec<f64> = v.as_array()?.iter().filter_map(Value::as_f64).collect();
+        (a.len() == 3 && a.iter().all(|x| x.is_finite())).then(|| [a[0], a[1], a[2]])
+    };
+    if let (Some(lo), Some(hi)) = (corner(&stage["walls"][0]), corner(&stage["walls"][1])) {
+        colliders.push(wall_meshes(lo, hi, 1, floor.unwrap_or(0.0)));
+    }
     (floor, capsules, colliders)
 }
 
