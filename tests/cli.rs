@@ -500,28 +500,11 @@ fn a_baked_glb_shows_its_collider() {
     .unwrap();
     let o = springbake(&["bake", d.join("scene.toml").to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let shot = d.join("shot.png");
-    let o = springbake(&[
-        "view",
-        d.join("out.glb").to_str().unwrap(),
-        "--screenshot",
-        shot.to_str().unwrap(),
-        "--frame",
-        "12",
-        "--size",
-        "320x240",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let (width, height, buf) = decode_png(&std::fs::read(&shot).unwrap());
-    let grey = buf
-        .chunks(4)
-        .filter(|p| {
-            p[0] > 90
-                && (p[0] as i32 - p[2] as i32).abs() < 30
-                && (p[1] as i32 - p[2] as i32).abs() < 30
-        })
-        .count();
-    let share = grey as f64 / (width * height) as f64;
+    let share = grey_share(&d.join("out.glb"), &d.join("shot.png"), |p| {
+        p[0] > 90
+            && (p[0] as i32 - p[2] as i32).abs() < 30
+            && (p[1] as i32 - p[2] as i32).abs() < 30
+    });
     assert!(
         share > 0.1,
         "the collider covers {:.1} % of the picture",
@@ -543,7 +526,7 @@ fn the_rooms_walls_show_in_screenshots() {
     let scene = "[output]\npath = \"w.glb\"\nframes = 12\n[world]\nfloor = 0.0\n\
         WALLS[[body]]\nsource = \"icosphere.glb\"\ncells = 4\n";
     let walls = "[world.walls]\nmin = [-0.8, 0.0, -0.8]\nmax = [0.8, 3.0, 0.8]\n";
-    let grey_share = |text: &str, view: &str| -> f64 {
+    let walls_share = |text: &str, view: &str| -> f64 {
         std::fs::write(d.join("w.toml"), scene.replace("WALLS", text)).unwrap();
         let o = springbake(&[
             "bake",
@@ -552,37 +535,41 @@ fn the_rooms_walls_show_in_screenshots() {
             "quiet",
         ]);
         assert!(o.status.success(), "{}", stderr(&o));
-        let shot = d.join("w.png");
-        let input = d.join(view);
-        let args = [
-            "view",
-            input.to_str().unwrap(),
-            "--screenshot",
-            shot.to_str().unwrap(),
-            "--frame",
-            "12",
-            "--size",
-            "320x240",
-        ];
-        let o = springbake(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let (width, height, buf) = decode_png(&std::fs::read(&shot).unwrap());
-        let grey = buf
-            .chunks(4)
-            .filter(|p| {
-                // the walls' lit grey (the HUD's text is brighter, the floor darker)
-                (80..=150).contains(&p[0])
-                    && (p[0] as i32 - p[2] as i32).abs() < 25
-                    && (p[1] as i32 - p[2] as i32).abs() < 25
-            })
-            .count();
-        grey as f64 / (width * height) as f64
+        // the walls' lit grey (the HUD's text is brighter, the floor darker)
+        grey_share(&d.join(view), &d.join("w.png"), |p| {
+            (80..=150).contains(&p[0])
+                && (p[0] as i32 - p[2] as i32).abs() < 25
+                && (p[1] as i32 - p[2] as i32).abs() < 25
+        })
     };
     for view in ["w.toml", "w.glb"] {
-        let (with, without) = (grey_share(walls, view), grey_share("", view));
+        let (with, without) = (walls_share(walls, view), walls_share("", view));
         assert!(
             with > 0.01 && without < 0.002,
             "{view}: walls {with}, none {without}"
         );
     }
+}
+
+/// The share of a 320×240 screenshot of `input` at frame 12 (written to `shot`) whose pixels
+/// pass `keep`.
+fn grey_share(
+    input: &std::path::Path,
+    shot: &std::path::Path,
+    keep: impl Fn(&[u8]) -> bool,
+) -> f64 {
+    let args = [
+        "view",
+        input.to_str().unwrap(),
+        "--screenshot",
+        shot.to_str().unwrap(),
+        "--frame",
+        "12",
+        "--size",
+        "320x240",
+    ];
+    let o = springbake(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (width, height, buf) = decode_png(&std::fs::read(shot).unwrap());
+    buf.chunks(4).filter(|p| keep(p)).count() as f64 / (width * height) as f64
 }

@@ -1,7 +1,9 @@
 //! The static colliders particles bounce off (issue 20: "bouncing off the floor, walls and
 //! colliders"): their triangles in a uniform grid, and the first triangle a particle's step
-//! crosses (Möller–Trumbore on the segment from where it was to where it would be).
+//! crosses (`collide::geometry::segment_crosses_triangle` on the segment from where it was to
+//! where it would be).
 
+use crate::collide::geometry::segment_crosses_triangle;
 use nalgebra::Vector3;
 
 type V3 = Vector3<f64>;
@@ -104,9 +106,11 @@ impl TriangleGrid {
         }
         let step = to - from;
         let mut best: Option<(f64, usize)> = None;
-        self.for_cells(&lo, &hi, |c| {
-            for &t in &self.entries[self.start[c] as usize..self.start[c + 1] as usize] {
-                if let Some(s) = segment_hits(from, &step, &self.triangles[t as usize]) {
+        self.for_cells(&lo, &hi, |cell| {
+            let bucket = self.start[cell] as usize..self.start[cell + 1] as usize;
+            for &t in &self.entries[bucket] {
+                let [a, b, c] = &self.triangles[t as usize];
+                if let Some((s, _)) = segment_crosses_triangle(from, to, a, b, c) {
                     if best.is_none_or(|(b, i)| s < b || (s == b && (t as usize) < i)) {
                         best = Some((s, t as usize));
                     }
@@ -124,29 +128,6 @@ impl TriangleGrid {
             normal,
         })
     }
-}
-
-/// Where along `from + s·step`, s in [0, 1], the segment meets triangle `t` (Möller–Trumbore).
-fn segment_hits(from: &V3, step: &V3, t: &[V3; 3]) -> Option<f64> {
-    let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
-    let p = step.cross(&e2);
-    let det = e1.dot(&p);
-    if det.abs() < 1e-300 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let r = from - t[0];
-    let u = r.dot(&p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = r.cross(&e1);
-    let v = step.dot(&q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let s = e2.dot(&q) * inv;
-    (0.0..=1.0).contains(&s).then_some(s)
 }
 
 #[cfg(test)]
