@@ -36,8 +36,40 @@ pub struct Texture {
 }
 
 impl Texture {
+    /// A PNG's or a JPEG's pixels, by the bytes' signature; `None` for anything else or an
+    /// image that does not decode (the mesh keeps its colour).
+    pub fn decode(bytes: &[u8]) -> Option<Texture> {
+        if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+            Texture::from_jpeg(bytes)
+        } else {
+            Texture::from_png(bytes)
+        }
+    }
+
+    /// A baseline or progressive JPEG's pixels as RGB (zune-jpeg; grey and CMYK converted).
+    pub fn from_jpeg(bytes: &[u8]) -> Option<Texture> {
+        use zune_jpeg::zune_core::{
+            bytestream::ZCursor, colorspace::ColorSpace, options::DecoderOptions,
+        };
+        let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB);
+        let mut decoder = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+        let pixels = decoder.decode().ok()?;
+        let info = decoder.info()?;
+        let (width, height) = (u32::from(info.width), u32::from(info.height));
+        let count = width as usize * height as usize;
+        (count > 0 && pixels.len() >= count * 3).then(|| Texture {
+            width,
+            height,
+            rgb: pixels
+                .chunks_exact(3)
+                .take(count)
+                .map(|p| [p[0], p[1], p[2]])
+                .collect(),
+        })
+    }
+
     /// A PNG's pixels (8 or 16 bits, grey, RGB, palette, with or without alpha); `None` for
-    /// anything else (JPEG is not decoded: the mesh keeps its colour).
+    /// anything else.
     pub fn from_png(bytes: &[u8]) -> Option<Texture> {
         let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
@@ -792,6 +824,42 @@ mod tests {
         assert!((lambert(&Vector3::z(), &eye, &light) - 1.0).abs() < 1e-12);
         assert!((lambert(&-Vector3::z(), &eye, &light) - 1.0).abs() < 1e-12);
         assert!((lambert(&Vector3::x(), &eye, &light) - 0.25).abs() < 1e-12);
+    }
+
+    /// An 8×8 JPEG of one colour, (0.8, 0.15, 0.05) of full scale, as Blender 5.0.1 saves a
+    /// new image's pixels (quality 90).
+    const ORANGE_JPEG: &str = concat!(
+        "/9j/4AAQSkZJRgABAQAAAQABAAD/4QAMTmVvR2VvAAAAWv/bAEMAAwICAwICAwMDAwQDAwQFCAUFBAQFCgcHBggM",
+        "CgwMCwoLCw0OEhANDhEOCwsQFhARExQVFRUMDxcYFhQYEhQVFP/bAEMBAwQEBQQFCQUFCRQNCw0UFBQUFBQUFBQU",
+        "FBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFBQUFP/AABEIAAgACAMBIgACEQEDEQH/xAAfAAAB",
+        "BQEBAQEBAQAAAAAAAAAAAQIDBAUGBwgJCgv/xAC1EAACAQMDAgQDBQUEBAAAAX0BAgMABBEFEiExQQYTUWEHInEU",
+        "MoGRoQgjQrHBFVLR8CQzYnKCCQoWFxgZGiUmJygpKjQ1Njc4OTpDREVGR0hJSlNUVVZXWFlaY2RlZmdoaWpzdHV2",
+        "d3h5eoOEhYaHiImKkpOUlZaXmJmaoqOkpaanqKmqsrO0tba3uLm6wsPExcbHyMnK0tPU1dbX2Nna4eLj5OXm5+jp",
+        "6vHy8/T19vf4+fr/xAAfAQADAQEBAQEBAQEBAAAAAAAAAQIDBAUGBwgJCgv/xAC1EQACAQIEBAMEBwUEBAABAncA",
+        "AQIDEQQFITEGEkFRB2FxEyIygQgUQpGhscEJIzNS8BVictEKFiQ04SXxFxgZGiYnKCkqNTY3ODk6Q0RFRkdISUpT",
+        "VFVWV1hZWmNkZWZnaGlqc3R1dnd4eXqCg4SFhoeIiYqSk5SVlpeYmZqio6Slpqeoqaqys7S1tre4ubrCw8TFxsfI",
+        "ycrS09TV1tfY2dri4+Tl5ufo6ery8/T19vf4+fr/2gAMAwEAAhEDEQA/APDKKKK/Ej+4z//Z",
+    );
+
+    #[test]
+    fn a_jpeg_texture_decodes_to_its_colour() {
+        use base64::Engine as _;
+        let bytes = base64::engine::general_purpose::STANDARD
+            .decode(ORANGE_JPEG)
+            .unwrap();
+        let t = Texture::decode(&bytes).unwrap();
+        assert_eq!((t.width, t.height), (8, 8));
+        // (204, 38, 13) to JPEG's rounding
+        for texel in &t.rgb {
+            let want = [204, 38, 13];
+            for c in 0..3 {
+                assert!((texel[c] as i32 - want[c]).abs() <= 8, "{texel:?}");
+            }
+        }
+        assert!(
+            Texture::decode(&bytes[..100]).is_none(),
+            "a cut JPEG is refused"
+        );
     }
 
     #[test]

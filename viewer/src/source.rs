@@ -178,7 +178,7 @@ impl StageCapsule {
     }
 }
 
-/// The base-colour image of `mesh`'s first primitive's material (a PNG) over the mesh's UVs
+/// The base-colour image of `mesh`'s first primitive's material (PNG or JPEG) over the mesh's UVs
 /// (every primitive's, in order), when both are there.
 fn surface_texture(
     scene: &springbake_core::display::ImportedScene,
@@ -191,7 +191,7 @@ fn surface_texture(
         .find(|m| &m.name == name)?
         .base_colour_texture
         .as_ref()?;
-    let texture = crate::raster::Texture::from_png(&image.bytes)?;
+    let texture = crate::raster::Texture::decode(&image.bytes)?;
     let uvs = mesh
         .primitives
         .iter()
