@@ -1,25 +1,20 @@
 //! The static colliders particles bounce off (issue 20: "bouncing off the floor, walls and
-//! colliders"): their triangles in a uniform grid, and the first triangle a particle's step
-//! crosses (`collide::geometry::segment_crosses_triangle` on the segment from where it was to
-//! where it would be).
+//! colliders"): their triangles' boxes in the broad phase's grid ([`BoxGrid`]), and the first
+//! triangle a particle's step crosses (`collide::geometry::segment_crosses_triangle` on the
+//! segment from where it was to where it would be).
 
 use crate::collide::geometry::segment_crosses_triangle;
+use crate::collide::BoxGrid;
 use nalgebra::Vector3;
+use std::cell::RefCell;
 
 type V3 = Vector3<f64>;
 
-/// Most grid cells (the grid coarsens to stay under it).
-const MAX_CELLS: usize = 1 << 20;
-
-/// Triangles bucketed by the grid cells their bounding boxes overlap.
+/// The colliders' triangles and a grid over their boxes.
 pub struct TriangleGrid {
     triangles: Vec<[V3; 3]>,
-    origin: V3,
-    cell: f64,
-    dims: [usize; 3],
-    /// Per cell, `start[c]..start[c + 1]` indexes `entries` (triangle indices).
-    start: Vec<u32>,
-    entries: Vec<u32>,
+    /// The grid and a query's scratch list (a query marks what it reported: `&mut`).
+    query: RefCell<(BoxGrid, Vec<u32>)>,
 }
 
 /// Where a step crosses a triangle: the point, and the triangle's unit normal facing the
@@ -36,89 +31,43 @@ impl TriangleGrid {
         let first = triangles.first()?;
         let (mut lo, mut hi) = (first[0], first[0]);
         let mut edge = 0.0;
-        for t in &triangles {
-            for p in t {
-                lo = lo.inf(p);
-                hi = hi.sup(p);
-            }
-            edge += (t[1] - t[0]).norm() + (t[2] - t[1]).norm() + (t[0] - t[2]).norm();
-        }
-        let size = hi - lo;
-        let mut cell = (edge / (3 * triangles.len()) as f64)
-            .max(size.max() * 1e-3)
-            .max(1e-6);
-        let dims = loop {
-            let d = size.map(|s| (s / cell).floor() as usize + 1);
-            if d.x * d.y * d.z <= MAX_CELLS {
-                break [d.x, d.y, d.z];
-            }
-            cell *= 2.0;
-        };
-        let mut grid = TriangleGrid {
+        let boxes: Vec<(u32, V3, V3)> = triangles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let (a, b) = (t[0].inf(&t[1]).inf(&t[2]), t[0].sup(&t[1]).sup(&t[2]));
+                lo = lo.inf(&a);
+                hi = hi.sup(&b);
+                edge += (t[1] - t[0]).norm() + (t[2] - t[1]).norm() + (t[0] - t[2]).norm();
+                (i as u32, a, b)
+            })
+            .collect();
+        let cell = edge / (3 * triangles.len()) as f64;
+        let mut grid = BoxGrid::default();
+        grid.build(lo, hi, cell, triangles.len(), boxes.into_iter());
+        Some(TriangleGrid {
             triangles,
-            origin: lo,
-            cell,
-            dims,
-            start: Vec::new(),
-            entries: Vec::new(),
-        };
-        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
-        for (i, t) in grid.triangles.iter().enumerate() {
-            let (a, b) = (t[0].inf(&t[1]).inf(&t[2]), t[0].sup(&t[1]).sup(&t[2]));
-            grid.for_cells(&a, &b, |c| buckets[c].push(i as u32));
-        }
-        grid.start.push(0);
-        for b in buckets {
-            grid.entries.extend(b);
-            grid.start.push(grid.entries.len() as u32);
-        }
-        Some(grid)
+            query: RefCell::new((grid, Vec::new())),
+        })
     }
 
-    /// Calls `f` with every cell index the box `lo..hi` overlaps (clamped to the grid).
-    fn for_cells(&self, lo: &V3, hi: &V3, mut f: impl FnMut(usize)) {
-        let index = |p: &V3, k: usize| -> usize {
-            (((p[k] - self.origin[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1)
-        };
-        let (i0, i1) = ((0..3).map(|k| index(lo, k)), (0..3).map(|k| index(hi, k)));
-        let (a, b): (Vec<usize>, Vec<usize>) = (i0.collect(), i1.collect());
-        for z in a[2]..=b[2] {
-            for y in a[1]..=b[1] {
-                for x in a[0]..=b[0] {
-                    f(x + self.dims[0] * (y + self.dims[1] * z));
-                }
-            }
-        }
-    }
-
-    /// The first triangle the step `from → to` crosses, or `None`. A box wholly outside the
-    /// grid's bounds is not searched.
+    /// The first triangle the step `from → to` crosses, or `None`.
     pub fn crossing(&self, from: &V3, to: &V3) -> Option<Crossing> {
-        let (lo, hi) = (from.inf(to), from.sup(to));
-        let far = self.origin
-            + V3::new(
-                self.dims[0] as f64,
-                self.dims[1] as f64,
-                self.dims[2] as f64,
-            ) * self.cell;
-        if (0..3).any(|k| hi[k] < self.origin[k] || lo[k] > far[k]) {
-            return None;
-        }
-        let step = to - from;
+        let mut query = self.query.borrow_mut();
+        let (grid, found) = &mut *query;
+        grid.query(&from.inf(to), &from.sup(to), found);
         let mut best: Option<(f64, usize)> = None;
-        self.for_cells(&lo, &hi, |cell| {
-            let bucket = self.start[cell] as usize..self.start[cell + 1] as usize;
-            for &t in &self.entries[bucket] {
-                let [a, b, c] = &self.triangles[t as usize];
-                if let Some((s, _)) = segment_crosses_triangle(from, to, a, b, c) {
-                    if best.is_none_or(|(b, i)| s < b || (s == b && (t as usize) < i)) {
-                        best = Some((s, t as usize));
-                    }
+        for &t in found.iter() {
+            let [a, b, c] = &self.triangles[t as usize];
+            if let Some((s, _)) = segment_crosses_triangle(from, to, a, b, c) {
+                if best.is_none_or(|(b, i)| s < b || (s == b && (t as usize) < i)) {
+                    best = Some((s, t as usize));
                 }
             }
-        });
+        }
         let (s, t) = best?;
         let tri = &self.triangles[t];
+        let step = to - from;
         let n = (tri[1] - tri[0])
             .cross(&(tri[2] - tri[0]))
             .try_normalize(1e-30)?;
