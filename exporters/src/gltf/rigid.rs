@@ -11,6 +11,7 @@
 
 use serde_json::{json, Value};
 use springbake_core::nalgebra::{Matrix3, Matrix4, Quaternion, UnitQuaternion, Vector3};
+use springbake_importers::gltf::pose::decompose;
 
 /// Per frame, the rigid motion `x ≈ Q·r + u` of the mesh's vertices from their rest pose `r`
 /// (the mesh's local frame).
@@ -126,21 +127,10 @@ impl NodeTrs {
     }
 
     fn of_matrix(m: &Matrix4<f64>) -> Option<NodeTrs> {
-        let linear = m.fixed_view::<3, 3>(0, 0).into_owned();
-        let scale = Vector3::from_fn(|c, _| linear.column(c).norm());
-        if scale.min() <= 0.0 || m.row(3).transpose() != springbake_core::nalgebra::Vector4::w() {
-            return None;
-        }
-        let rotation = Matrix3::from_fn(|r, c| linear[(r, c)] / scale[c]);
-        let orthonormal = (rotation.transpose() * rotation - Matrix3::identity())
-            .abs()
-            .max();
-        if orthonormal > 1e-6 || rotation.determinant() < 0.0 {
-            return None;
-        }
+        let (translation, rotation, scale) = decompose(m)?;
         Some(NodeTrs {
-            translation: m.fixed_view::<3, 1>(0, 3).into_owned(),
-            rotation: UnitQuaternion::from_matrix(&rotation),
+            translation,
+            rotation,
             scale,
         })
     }

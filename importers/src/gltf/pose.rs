@@ -131,7 +131,7 @@ fn sample_at(
 }
 
 /// Writes `values` into the nodes of `json` as their static transform (a `matrix` node
-/// animated in TRS becomes TRS) and morph weights.
+/// animated in TRS becomes TRS, when its matrix is one) and morph weights.
 pub fn pose_at_start(doc_json: &mut Value, values: &[StartValue]) {
     for v in values {
         let Some(node) = doc_json["nodes"].get_mut(v.node) else {
@@ -139,7 +139,10 @@ pub fn pose_at_start(doc_json: &mut Value, values: &[StartValue]) {
         };
         if v.path != "weights" {
             if let Some(m) = node.get("matrix").cloned() {
-                let trs = trs_of_matrix(&m);
+                // glTF animates TRS nodes only; a matrix that is no TRS is left unposed.
+                let Some(trs) = trs_of_matrix(&m) else {
+                    continue;
+                };
                 if let Some(o) = node.as_object_mut() {
                     o.remove("matrix");
                 }
@@ -152,25 +155,38 @@ pub fn pose_at_start(doc_json: &mut Value, values: &[StartValue]) {
     }
 }
 
-/// A column-major `matrix` as glTF's translation, rotation and scale (no shear assumed).
-fn trs_of_matrix(m: &Value) -> Vec<(&'static str, Value)> {
-    let c: Vec<f64> = m
-        .as_array()
-        .map(|a| a.iter().filter_map(Value::as_f64).collect())
-        .unwrap_or_default();
-    if c.len() != 16 {
-        return Vec::new();
-    }
-    let m = Matrix4::from_column_slice(&c);
+/// A node matrix as glTF's translation, rotation and scale, when it is one (affine, no shear,
+/// no mirror); `None` otherwise.
+pub fn decompose(m: &Matrix4<f64>) -> Option<(Vector3<f64>, UnitQuaternion<f64>, Vector3<f64>)> {
     let linear = m.fixed_view::<3, 3>(0, 0).into_owned();
-    let scale = Vector3::from_fn(|i, _| linear.column(i).norm().max(f64::MIN_POSITIVE));
-    let rotation = UnitQuaternion::from_matrix(&Matrix3::from_fn(|r, i| linear[(r, i)] / scale[i]));
-    let q = rotation.coords;
-    vec![
-        ("translation", json!([m[(0, 3)], m[(1, 3)], m[(2, 3)]])),
+    let scale = Vector3::from_fn(|c, _| linear.column(c).norm());
+    if scale.min() <= 0.0 || m.row(3).transpose() != nalgebra::Vector4::w() {
+        return None;
+    }
+    let rotation = Matrix3::from_fn(|r, c| linear[(r, c)] / scale[c]);
+    let orthonormal = (rotation.transpose() * rotation - Matrix3::identity())
+        .abs()
+        .max();
+    if orthonormal > 1e-6 || rotation.determinant() < 0.0 {
+        return None;
+    }
+    let translation = m.fixed_view::<3, 1>(0, 3).into_owned();
+    Some((translation, UnitQuaternion::from_matrix(&rotation), scale))
+}
+
+/// A node's column-major `matrix` as TRS JSON values, when it is a TRS ([`decompose`]).
+fn trs_of_matrix(m: &Value) -> Option<Vec<(&'static str, Value)>> {
+    let c: Vec<f64> = m.as_array()?.iter().filter_map(Value::as_f64).collect();
+    if c.len() != 16 {
+        return None;
+    }
+    let (t, r, s) = decompose(&Matrix4::from_column_slice(&c))?;
+    let q = r.coords;
+    Some(vec![
+        ("translation", json!([t.x, t.y, t.z])),
         ("rotation", json!([q.x, q.y, q.z, q.w])),
-        ("scale", json!([scale.x, scale.y, scale.z])),
-    ]
+        ("scale", json!([s.x, s.y, s.z])),
+    ])
 }
 
 /// The morph targets' and skin's part of a posed primitive.
