@@ -261,17 +261,8 @@ pub fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let loaded = if is_scene {
         let mut loaded = load_scene(input)?;
-        if let Some(o) = &overrides.output {
-            loaded.scene.output.path = std::env::current_dir()
-                .map(|d| d.join(o))
-                .unwrap_or_else(|_| o.clone());
-        }
-        if let Some(n) = overrides.frames {
-            loaded.scene.output.frames = n;
-        }
-        if let Some(f) = overrides.fps {
-            loaded.scene.output.fps = f;
-        }
+        let cwd = std::env::current_dir().unwrap_or_default();
+        overrides.apply_to(&mut loaded.scene, &cwd);
         loaded
     } else {
         default_scene_for_mesh(input, overrides)
@@ -381,6 +372,23 @@ pub struct MeshOverrides {
     pub fps: Option<f64>,
     pub cells: Option<u32>,
     pub material: Option<String>,
+}
+
+impl MeshOverrides {
+    /// The command line's `output` (relative to `folder`), `frames` and `fps` over a scene's
+    /// own `[output]`.
+    pub fn apply_to(&self, scene: &mut SceneFile, folder: &Path) {
+        let output = &mut scene.output;
+        if let Some(o) = &self.output {
+            output.path = folder.join(o);
+        }
+        if let Some(n) = self.frames {
+            output.frames = n;
+        }
+        if let Some(f) = self.fps {
+            output.fps = f;
+        }
+    }
 }
 
 /// Frames of a bare-mesh bake: 3 s at 24 fps, long enough to fall, land, wobble and settle.

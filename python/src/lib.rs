@@ -157,16 +157,7 @@ fn scene_of_dict(
     };
     let name = base.join("<scene dict>");
     let mut loaded = springbake_pipeline::scene_from_text(&toml, &name, &base).map_err(raised)?;
-    let output = &mut loaded.scene.output;
-    if let Some(path) = &overrides.output {
-        output.path = base.join(path);
-    }
-    if let Some(n) = overrides.frames {
-        output.frames = n;
-    }
-    if let Some(f) = overrides.fps {
-        output.fps = f;
-    }
+    overrides.apply_to(&mut loaded.scene, &base);
     springbake_pipeline::validate_scene(&loaded.scene)
         .map_err(|m| BakeError::new_err(format!("{}: {m}", name.display())))?;
     Ok(loaded)

@@ -536,11 +536,11 @@ fn animate_nodes(
     fps: f64,
 ) -> Result<(), ViewerError> {
     use springbake_importers::gltf::pose::{pose_at_start, values_at};
-    let moves = |v: &springbake_importers::gltf::pose::StartValue| v.path != "weights";
+    const MOVES: [&str; 3] = ["translation", "rotation", "scale"];
     let animations = doc.array("animations").len();
     let mut any = false;
     for a in 0..animations {
-        any |= values_at(doc, a, 0.0)?.iter().any(moves);
+        any |= !values_at(doc, a, 0.0, &MOVES)?.is_empty();
     }
     if !any {
         return Ok(());
@@ -548,7 +548,7 @@ fn animate_nodes(
     for f in 0..frame_count {
         let time = f as f64 / fps.max(1e-9);
         for a in 0..animations {
-            let values: Vec<_> = values_at(doc, a, time)?.into_iter().filter(moves).collect();
+            let values = values_at(doc, a, time, &MOVES)?;
             pose_at_start(&mut doc.json, &values);
         }
         let worlds = springbake_importers::gltf::scene_nodes(doc)?;

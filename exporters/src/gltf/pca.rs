@@ -187,18 +187,9 @@ pub fn principal_components(rows: &[Vec<f64>], bound: f64) -> Result<Components,
         };
         // No single component lowers the worst errors (they need several together): take the
         // next by variance.
+        // (The first one not kept is inside the window, so it was weighed above.)
         if error >= components.max_error * STALL {
             c = kept.iter().position(|k| !k).unwrap_or(c);
-            if candidates[c].is_none() {
-                let u: Vec<f64> = eigen
-                    .eigenvectors
-                    .column(order[c])
-                    .iter()
-                    .copied()
-                    .collect();
-                let target = project(std::slice::from_ref(&u), rows).remove(0);
-                candidates[c] = Some((u, target));
-            }
         }
         let Some((u, target)) = candidates[c].take() else {
             break;

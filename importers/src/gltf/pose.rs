@@ -29,15 +29,21 @@ pub fn start_values(doc: &GltfDocument) -> Result<Vec<StartValue>, PluginError> 
     if doc.array("animations").is_empty() {
         return Ok(Vec::new());
     }
-    values_at(doc, 0, 0.0)
+    values_at(
+        doc,
+        0,
+        0.0,
+        &["translation", "rotation", "scale", "weights"],
+    )
 }
 
-/// The node channels (translation, rotation, scale, weights) of `animations[animation]` at
-/// `time` seconds.
+/// The node channels of `animations[animation]` whose path is one of `paths` (translation,
+/// rotation, scale, weights) at `time` seconds; other channels are not read.
 pub fn values_at(
     doc: &GltfDocument,
     animation: usize,
     time: f64,
+    paths: &[&str],
 ) -> Result<Vec<StartValue>, PluginError> {
     let Some(json) = doc.array("animations").get(animation) else {
         return Ok(Vec::new());
@@ -50,7 +56,7 @@ pub fn values_at(
         let (Some(node), Some(path)) = (get_usize(target, "node"), target["path"].as_str()) else {
             continue; // a channel without a node drives nothing here
         };
-        if !matches!(path, "translation" | "rotation" | "scale" | "weights") {
+        if !paths.contains(&path) {
             continue;
         }
         let sampler = get_usize(channel, "sampler")
