@@ -1,7 +1,9 @@
 //! USD sources as a renderer draws them (issue 19 item 3): native instances (instanceable
 //! internal references) are simulated, one body per instance, and written back with their
-//! own points (the instance stops sharing its prototype); a point instancer's prototype is not
-//! simulated where it sits; an invisible mesh is left out with a note unless the body asks
+//! own points (the instance stops sharing its prototype); a point instancer's instances are
+//! realised, one body per visible instance, written back as meshes of their own beside the
+//! instancer (which is made invisible), while its prototype is not simulated where it sits;
+//! an invisible mesh is left out with a note unless the body asks
 //! for it (`include_hidden = true`). usd-core reads the baked stages. Before this, the two
 //! crates were skipped silently (the traversal did not enter instances) and the prototype was
 //! simulated as a body; the stage did not even open (an internal reference was taken for a
@@ -27,8 +29,7 @@ fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
     springbake_testkit::run_python_client("make_instanced_usd.py", &[source.to_str().unwrap()]);
     let err = bake_file(d, "stage.usda", "baked.usda", "24");
     assert!(
-        err.contains("2 mesh(es) not simulated")
-            && err.contains("/World/Scatter/Prototypes/Pebble (a PointInstancer prototype)")
+        err.contains("1 prim(s) not simulated")
             && err.contains("/World/GhostXf/Ghost (invisible)")
             && err.contains("include_hidden"),
         "{err}"
@@ -44,6 +45,40 @@ fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
         assert!(first > 0.7 && last < first - 0.3, "{crate_path} falls: {c}");
     }
     assert_eq!(m["/World/Scatter/Prototypes/Pebble"]["samples"], 0, "{m}");
+
+    // The point instances start where usd-core draws them (position, orientation, scale,
+    // the prototype root's own transform, the instancer's) and fall; the masked one is not
+    // made; the instancer no longer draws.
+    let out = springbake_testkit::run_python_client(
+        "usd_point_instances.py",
+        &[
+            source.to_str().unwrap(),
+            "/World/Scatter",
+            "/World/Scatter/Prototypes/Pebble",
+            d.join("baked.usda").to_str().unwrap(),
+        ],
+    );
+    let pi = springbake_testkit::last_json_line(&out);
+    assert_eq!(pi["instancer_visible"], false, "{pi}");
+    assert_eq!(pi["masked_copies"], serde_json::json!([]), "{pi}");
+    for i in 0..3 {
+        let path = format!("/World/Scatter_instances/Pebble_{i}");
+        let copy = &pi["copies"][&path];
+        assert!(copy["error"].as_f64().unwrap() < 1e-5, "{path}: {pi}");
+        assert_eq!(copy["visible"], true, "{path}: {pi}");
+        assert_eq!(copy["samples"], 24, "{path}: {pi}");
+        let fell = &m[&path];
+        assert!(
+            fell["lowest_last"].as_f64().unwrap() < fell["lowest_first"].as_f64().unwrap() - 0.3,
+            "{path} falls: {fell}"
+        );
+    }
+    // By hand: the second pebble's centre, (0, 0, 0.1) in its prototype, scaled 0.5, turned
+    // about z, at (0, 4, 1), the instancer moved 0.5 m along x.
+    let centre = &pi["copies"]["/World/Scatter_instances/Pebble_1"]["centre"];
+    for (k, want) in [0.5, 4.0, 1.05].iter().enumerate() {
+        assert!((centre[k].as_f64().unwrap() - want).abs() < 1e-5, "{centre}");
+    }
     assert_eq!(m["/World/GhostXf/Ghost"]["samples"], 0, "{m}");
 
     // Asked for: the invisible box is simulated too.
@@ -55,11 +90,7 @@ fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
     .unwrap();
     let out = springbake_in(d, &["bake", "scene.toml", "--progress", "quiet"]);
     assert!(out.status.success(), "{}", stderr(&out));
-    assert!(
-        stderr(&out).contains("1 mesh(es) not simulated"),
-        "{}",
-        stderr(&out)
-    );
+    assert!(!stderr(&out).contains("not simulated"), "{}", stderr(&out));
     let m = motion(&d.join("all.usda"));
     assert_eq!(m["/World/GhostXf/Ghost"]["samples"], 12, "{m}");
     assert_eq!(m["/World/Crate1/Box"]["samples"], 12, "{m}");

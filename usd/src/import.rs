@@ -253,7 +253,7 @@ impl UsdImporter {
         if !stage.hidden.is_empty() {
             let shown: Vec<&str> = stage.hidden.iter().take(5).map(String::as_str).collect();
             notes.push(format!(
-                "{}: {} mesh(es) not simulated, as a renderer would not draw them there: {}{} \
+                "{}: {} prim(s) not simulated: {}{} \
                  (include_hidden = true on the body simulates invisible and proxy/guide meshes)",
                 report.display(),
                 stage.hidden.len(),

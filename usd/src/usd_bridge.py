@@ -217,9 +217,185 @@ def _in_point_instancer(prim):
     return False
 
 
+# Most instances a PointInstancer may have for springbake to simulate each as a body (a
+# scatter of pebbles, not a forest of grass blades); a larger one stays as it is, with a note.
+MAX_POINT_INSTANCES = 1000
+
+
+def _prim_name(text):
+    """`text` as a valid prim name."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", text)
+    return name if name and not name[0].isdigit() else "_" + name
+
+
+def _first_sample(*attrs):
+    """The earliest time sample of any of `attrs`, or the default time when none has one."""
+    times = [t for attr in attrs for t in attr.GetTimeSamples()]
+    return Usd.TimeCode(min(times)) if times else Usd.TimeCode.Default()
+
+
+def _point_instances(stage, time, include_hidden, hidden):
+    """The meshes a renderer draws at each PointInstancer's points, realised: one entry per
+    (instance, prototype mesh) with the path the baked copy gets (`<instancer>_instances/
+    <prototype>_<i>[/<mesh path under the prototype>]`, a sibling of the instancer), the
+    prototype mesh prim it copies, and its world matrix (the mesh inside its prototype, the
+    prototype root's own transform, the instance's, the instancer's). Masked (invisible)
+    instances are left out; an instancer with more than MAX_POINT_INSTANCES instances, or
+    inside another one's prototypes, is left as it is and noted in `hidden`. The same stage
+    gives the same list, so the import and the export name the copies alike."""
+    found = []
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if not prim.IsA(UsdGeom.PointInstancer):
+            continue
+        location = str(prim.GetPath())
+        if _in_point_instancer(prim):
+            hidden.append(location + " (a PointInstancer inside another's prototypes)")
+            continue
+        imageable = UsdGeom.Imageable(prim)
+        if not include_hidden and imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+            hidden.append(location + " (an invisible PointInstancer)")
+            continue
+        instancer = UsdGeom.PointInstancer(prim)
+        prototypes = instancer.GetPrototypesRel().GetForwardedTargets()
+        # Where the instances are at the stage's first time sample (or their default).
+        at = _first_sample(instancer.GetProtoIndicesAttr(), instancer.GetPositionsAttr())
+        indices = instancer.GetProtoIndicesAttr().Get(at) or []
+        if len(indices) > MAX_POINT_INSTANCES:
+            hidden.append(
+                "%s (a PointInstancer of %d instances: more than %d are not simulated)"
+                % (location, len(indices), MAX_POINT_INSTANCES)
+            )
+            continue
+        xforms = instancer.ComputeInstanceTransformsAtTime(
+            at,
+            at,
+            UsdGeom.PointInstancer.IncludeProtoXform,
+            UsdGeom.PointInstancer.IgnoreMask,
+        )
+        if xforms is None or len(xforms) != len(indices):
+            raise BridgeError(
+                "the PointInstancer's positions, orientations or scales do not match its "
+                "protoIndices (%d instances)" % len(indices),
+                location,
+            )
+        mask = instancer.ComputeMaskAtTime(at) or []
+        instancer_world = imageable.ComputeLocalToWorldTransform(at)
+        parent = prim.GetParent()
+        group = str(parent.GetPath().AppendChild(_prim_name(prim.GetName() + "_instances")))
+        for i, proto_index in enumerate(indices):
+            if mask and not mask[i]:
+                continue
+            if not 0 <= proto_index < len(prototypes):
+                raise BridgeError(
+                    "protoIndices[%d] is %d, but the PointInstancer has %d prototypes"
+                    % (i, proto_index, len(prototypes)),
+                    location + ".protoIndices",
+                )
+            root = stage.GetPrimAtPath(prototypes[proto_index])
+            if not root:
+                raise BridgeError("the prototype is not on the stage", str(prototypes[proto_index]))
+            root_world_inverse = UsdGeom.Imageable(root).ComputeLocalToWorldTransform(time).GetInverse()
+            copy = group + "/" + _prim_name("%s_%d" % (root.GetName(), i))
+            for mesh in Usd.PrimRange(root, Usd.TraverseInstanceProxies()):
+                if not mesh.IsA(UsdGeom.Mesh):
+                    continue
+                purpose = UsdGeom.Imageable(mesh).ComputePurpose()
+                if not include_hidden and purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
+                    continue
+                inside = UsdGeom.Imageable(mesh).ComputeLocalToWorldTransform(time) * root_world_inverse
+                relative = str(mesh.GetPath().MakeRelativePath(root.GetPath()))
+                path = copy if relative == "." else copy + "/" + relative
+                found.append(
+                    {
+                        "path": path,
+                        "name": _prim_name("%s_%d" % (mesh.GetName(), i)),
+                        "prototype": mesh,
+                        "world": inside * xforms[i] * instancer_world,
+                        "instancer": location,
+                    }
+                )
+    return found
+
+
+def _mesh_record(prim, location, name, world, time, root, looks):
+    """One mesh's raw arrays, normals, UVs and bound materials for the Rust side."""
+    mesh = UsdGeom.Mesh(prim)
+    points = _value(mesh.GetPointsAttr(), time)
+    counts = _value(mesh.GetFaceVertexCountsAttr(), time)
+    indices = _value(mesh.GetFaceVertexIndicesAttr(), time)
+    if points is None or counts is None or indices is None:
+        raise BridgeError("mesh lacks points, faceVertexCounts or faceVertexIndices", location)
+    primvars = UsdGeom.PrimvarsAPI(prim)
+    normals = None
+    normals_source = None
+    pv_normals = primvars.GetPrimvar("normals")
+    if pv_normals and pv_normals.HasAuthoredValue():
+        normals = _primvar_data(pv_normals, time, location + ".primvars:normals")
+        normals_source = "primvars:normals"
+    else:
+        attr = mesh.GetNormalsAttr()
+        if attr.HasAuthoredValue():
+            value = _value(attr, time)
+            if value is not None:
+                normals = {
+                    "interpolation": str(mesh.GetNormalsInterpolation()),
+                    "values": _flat(value, "f"),
+                }
+                normals_source = "normals"
+    st = None
+    for uv_name in ("st", "UVMap", "uv", "st0"):
+        pv = primvars.GetPrimvar(uv_name)
+        if pv and pv.HasAuthoredValue():
+            st = _primvar_data(pv, time, location + ".primvars:" + uv_name)
+            break
+    if st is None:
+        # Any other texture-coordinate primvar (texCoord2f[], e.g. st_faceVarying), the
+        # first in name order.
+        for pv in sorted(primvars.GetPrimvars(), key=lambda p: p.GetPrimvarName()):
+            if str(pv.GetTypeName()) in _UV_TYPES and pv.HasAuthoredValue():
+                uv_name = str(pv.GetPrimvarName())
+                st = _primvar_data(pv, time, location + ".primvars:" + uv_name)
+                break
+    material = None
+    try:
+        bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        if bound:
+            material = bound.GetPrim().GetName()
+            looks.setdefault(material, _material_look(bound, root))
+    except Exception:
+        material = None
+    # Materials bound per face through GeomSubsets (family materialBind).
+    subsets = []
+    try:
+        for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
+            bound, _rel = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
+            faces = subset.GetIndicesAttr().Get(time)
+            if bound and faces is not None:
+                subsets.append((bound.GetPrim().GetName(), _flat(faces, "i")))
+                looks.setdefault(bound.GetPrim().GetName(), _material_look(bound, root))
+    except Exception:
+        subsets = []
+    return {
+        "path": location,
+        "name": name,
+        "points": _flat(points, "f"),
+        "counts": _flat(counts, "i"),
+        "indices": _flat(indices, "i"),
+        "normals": normals,
+        "normals_source": normals_source,
+        "st": st,
+        "orientation": str(mesh.GetOrientationAttr().Get() or "rightHanded"),
+        "material": material,
+        "subsets": subsets,
+        # Gf matrices are row-major with row vectors (p' = p * M).
+        "world": array.array("d", [world[i][j] for i in range(4) for j in range(4)]).tobytes(),
+    }
+
+
 def read_stage(path, root, include_hidden=False):
     """The stage's meshes as a renderer draws them: native instances expanded (each instance
-    a mesh of its own, at its instance proxy's path), point-instancer prototypes left out,
+    a mesh of its own, at its instance proxy's path), point instances realised (each a mesh
+    of its own, see `_point_instances`; the prototypes are not simulated where they sit),
     invisible and proxy/guide geometry left out unless `include_hidden`. `hidden` lists what
     was left out and why."""
     _check_layer_tree(path, root)
@@ -230,12 +406,9 @@ def read_stage(path, root, include_hidden=False):
     hidden = []
     looks = {}
     for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
-        if not prim.IsA(UsdGeom.Mesh):
+        if not prim.IsA(UsdGeom.Mesh) or _in_point_instancer(prim):
             continue
         location = str(prim.GetPath())
-        if _in_point_instancer(prim):
-            hidden.append(location + " (a PointInstancer prototype)")
-            continue
         # What a renderer would not draw is not simulated: invisible prims (their own
         # visibility or an ancestor's) and proxy or guide geometry.
         imageable = UsdGeom.Imageable(prim)
@@ -246,86 +419,19 @@ def read_stage(path, root, include_hidden=False):
         if not include_hidden and purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
             hidden.append("%s (purpose %s)" % (location, purpose))
             continue
-        mesh = UsdGeom.Mesh(prim)
-        points = _value(mesh.GetPointsAttr(), time)
-        counts = _value(mesh.GetFaceVertexCountsAttr(), time)
-        indices = _value(mesh.GetFaceVertexIndicesAttr(), time)
-        if points is None or counts is None or indices is None:
-            raise BridgeError(
-                "mesh lacks points, faceVertexCounts or faceVertexIndices", location
-            )
-        primvars = UsdGeom.PrimvarsAPI(prim)
-        normals = None
-        normals_source = None
-        pv_normals = primvars.GetPrimvar("normals")
-        if pv_normals and pv_normals.HasAuthoredValue():
-            normals = _primvar_data(pv_normals, time, location + ".primvars:normals")
-            normals_source = "primvars:normals"
-        else:
-            attr = mesh.GetNormalsAttr()
-            if attr.HasAuthoredValue():
-                value = _value(attr, time)
-                if value is not None:
-                    normals = {
-                        "interpolation": str(mesh.GetNormalsInterpolation()),
-                        "values": _flat(value, "f"),
-                    }
-                    normals_source = "normals"
-        st = None
-        for name in ("st", "UVMap", "uv", "st0"):
-            pv = primvars.GetPrimvar(name)
-            if pv and pv.HasAuthoredValue():
-                st = _primvar_data(pv, time, location + ".primvars:" + name)
-                break
-        if st is None:
-            # Any other texture-coordinate primvar (texCoord2f[], e.g. st_faceVarying), the
-            # first in name order.
-            for pv in sorted(primvars.GetPrimvars(), key=lambda p: p.GetPrimvarName()):
-                if str(pv.GetTypeName()) in _UV_TYPES and pv.HasAuthoredValue():
-                    name = str(pv.GetPrimvarName())
-                    st = _primvar_data(pv, time, location + ".primvars:" + name)
-                    break
-        material = None
-        try:
-            bound, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-            if bound:
-                material = bound.GetPrim().GetName()
-                looks.setdefault(material, _material_look(bound, root))
-        except Exception:
-            material = None
-        # Materials bound per face through GeomSubsets (family materialBind).
-        subsets = []
-        try:
-            for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
-                bound, _rel = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
-                faces = subset.GetIndicesAttr().Get(time)
-                if bound and faces is not None:
-                    subsets.append((bound.GetPrim().GetName(), _flat(faces, "i")))
-                    looks.setdefault(bound.GetPrim().GetName(), _material_look(bound, root))
-        except Exception:
-            subsets = []
-        world = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time)
+        world = imageable.ComputeLocalToWorldTransform(time)
+        meshes.append(_mesh_record(prim, location, prim.GetName(), world, time, root, looks))
+    for instance in _point_instances(stage, time, include_hidden, hidden):
         meshes.append(
-            {
-                "path": location,
-                "name": prim.GetName(),
-                "points": _flat(points, "f"),
-                "counts": _flat(counts, "i"),
-                "indices": _flat(indices, "i"),
-                "normals": normals,
-                "normals_source": normals_source,
-                "st": st,
-                "orientation": str(mesh.GetOrientationAttr().Get() or "rightHanded"),
-                "material": material,
-                "subsets": subsets,
-                # Gf matrices are row-major with row vectors (p' = p * M).
-                "world": array.array("d", [world[i][j] for i in range(4) for j in range(4)]).tobytes(),
-            }
+            _mesh_record(
+                instance["prototype"], instance["path"], instance["name"], instance["world"],
+                time, root, looks,
+            )
         )
     if not meshes and hidden:
         raise BridgeError(
-            "every UsdGeomMesh is invisible, proxy/guide geometry or a point-instancer "
-            "prototype, so there is nothing to simulate: " + ", ".join(hidden[:5])
+            "every UsdGeomMesh is invisible, proxy/guide geometry or in a PointInstancer "
+            "springbake does not simulate, so there is nothing to simulate: " + ", ".join(hidden[:5])
             + (" …" if len(hidden) > 5 else "")
             + " (set include_hidden = true on the body to simulate invisible and proxy/guide meshes)",
             str(path),
@@ -337,6 +443,51 @@ def read_stage(path, root, include_hidden=False):
         "hidden": hidden,
         "materials": [look for look in looks.values() if look is not None],
     }
+
+
+def _realise_point_instances(stage, baked_paths):
+    """Author the realised copies of `_point_instances` that were baked: each a copy of its
+    prototype mesh at its own path with its own transform (relative to the instancer's
+    parent), and make their instancers invisible (the copies now draw what they drew)."""
+    instances = [
+        i for i in _point_instances(stage, Usd.TimeCode.Default(), True, [])
+        if i["path"] in baked_paths
+    ]
+    layer = stage.GetRootLayer()
+    instancers = set()
+    for instance in instances:
+        path = Sdf.Path(instance["path"])
+        parent_path = path.GetParentPath()
+        parent_world = UsdGeom.Imageable(
+            stage.GetPrimAtPath(instance["instancer"]).GetParent()
+        ).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+        # Plain transforms between the instancer's parent and the copy.
+        Sdf.CreatePrimInLayer(layer, parent_path)
+        for ancestor in parent_path.GetPrefixes():
+            spec = layer.GetPrimAtPath(ancestor)
+            if spec.specifier != Sdf.SpecifierDef:
+                spec.specifier = Sdf.SpecifierDef
+                spec.typeName = "Xform"
+        prototype = instance["prototype"]
+        if prototype.IsInstanceProxy() or not layer.GetPrimAtPath(prototype.GetPath()):
+            raise BridgeError(
+                "this point instance's prototype mesh is inside a native instance; springbake "
+                "cannot write it back",
+                str(prototype.GetPath()),
+            )
+        if not Sdf.CopySpec(layer, prototype.GetPath(), layer, path):
+            raise BridgeError("usd-core cannot copy the prototype mesh", str(path))
+        copy = UsdGeom.Mesh(stage.GetPrimAtPath(path))
+        # A material bound on the prototype's root rather than its mesh is bound on the copy.
+        bound, _rel = UsdShade.MaterialBindingAPI(prototype).ComputeBoundMaterial()
+        if bound:
+            UsdShade.MaterialBindingAPI.Apply(copy.GetPrim()).Bind(bound)
+        copy.ClearXformOpOrder()
+        copy.AddTransformOp().Set(instance["world"] * parent_world.GetInverse())
+        copy.GetVisibilityAttr().Set(UsdGeom.Tokens.inherited)
+        instancers.add(instance["instancer"])
+    for location in sorted(instancers):
+        UsdGeom.Imageable(stage.GetPrimAtPath(location)).MakeInvisible()
 
 
 def _vec3f_array(data, count):
@@ -429,6 +580,7 @@ def write_source_stage(source_path, out_path, spec):
         UsdUtils.ModifyAssetPaths(flat_layer, relative)
     stage = Usd.Stage.Open(flat_layer)
     frame_count = int(spec["frame_count"])
+    _realise_point_instances(stage, {item["prim_path"] for item in spec["meshes"]})
     # A baked mesh inside a native instance gets points of its own: its instance stops
     # sharing the prototype (it composes as a plain reference), so it can be authored.
     for item in spec["meshes"]:
