@@ -99,12 +99,13 @@ enum Command {
     },
     /// Polygonise a superquadric metaball model (Terasawa §5.3) into a watertight glTF mesh.
     ///
-    /// The shapes file (TOML, Y-up metres): `threshold = 0.5`, `resolution = 0.005` (largest
-    /// cell edge, m; default a 128th of the model) and `[[superquadric]]` tables with
-    /// `center`, `radii = [a, b, c]`, `exponents = [e1, e2]` (1 round, 0.1 a box),
-    /// `rotation` (degrees about x, y, z) and `weight`. Primitives blend where their densities
-    /// overlap; thin parts are kept (the grid is refined where one would fall between
-    /// samples).
+    /// The shapes file (TOML, Y-up metres): `threshold = 0.5`, `resolution = 0.005` (the
+    /// finest detail, m; default a 128th of the model: the mesh follows the surface within a
+    /// twentieth of it, with smaller triangles where the surface bends and larger where it is
+    /// flat) and `[[superquadric]]` tables with `center`, `radii = [a, b, c]`,
+    /// `exponents = [e1, e2]` (1 round, 0.1 a box), `rotation` (degrees about x, y, z) and
+    /// `weight`. Primitives blend where their densities overlap; thin parts down to a quarter
+    /// of the resolution are kept (the grid is refined where one would fall between samples).
     Model {
         shapes: PathBuf,
         /// Output .glb.

@@ -77,7 +77,10 @@ fn instances_are_simulated_prototypes_and_hidden_meshes_are_not() {
     // about z, at (0, 4, 1), the instancer moved 0.5 m along x.
     let centre = &pi["copies"]["/World/Scatter_instances/Pebble_1"]["centre"];
     for (k, want) in [0.5, 4.0, 1.05].iter().enumerate() {
-        assert!((centre[k].as_f64().unwrap() - want).abs() < 1e-5, "{centre}");
+        assert!(
+            (centre[k].as_f64().unwrap() - want).abs() < 1e-5,
+            "{centre}"
+        );
     }
     assert_eq!(m["/World/GhostXf/Ghost"]["samples"], 0, "{m}");
 

@@ -76,14 +76,24 @@ pub fn shapes_surface(
             file.threshold
         ));
     }
-    let note = (surface.hidden_cells > 0).then(|| {
-        format!(
+    let mut notes = Vec::new();
+    if surface.hidden_cells > 0 {
+        notes.push(format!(
             "{} cells of {:.4} m may hide parts thinner than a cell (the refinement stopped at \
              its budget); set a finer resolution to keep them",
             surface.hidden_cells, surface.cell
-        )
-    });
-    Ok((surface, note))
+        ));
+    }
+    if surface.ungraded_edges > 0 {
+        notes.push(format!(
+            "{} edges stay further than {:.5} m from the surface: the mesh reached {} \
+             triangles; set a coarser resolution",
+            surface.ungraded_edges,
+            resolution * crate::polygonise::TOLERANCE_PER_RESOLUTION,
+            crate::polygonise::MAX_TRIANGLES
+        ));
+    }
+    Ok((surface, (!notes.is_empty()).then(|| notes.join("; "))))
 }
 
 /// A model: primitives blended at a threshold.
@@ -103,6 +113,9 @@ struct Prim {
     e1: f64,
     e2: f64,
     weight: f64,
+    /// Beyond this in any local coordinate the density is zero (`F ≥ |l_k|^(2/e1)` for each
+    /// coordinate, so `|l_k| ≥ reach^(e1/2)` puts `F` past the reach).
+    cut: f64,
 }
 
 impl Model {
@@ -114,6 +127,7 @@ impl Model {
         if prims.is_empty() {
             return Err("no superquadrics".into());
         }
+        let reach = 1.0 / (1.0 - threshold.cbrt());
         let mut out = Vec::new();
         for (i, q) in prims.iter().enumerate() {
             let bad = |what: &str| Err(format!("superquadric[{i}].{what}"));
@@ -141,12 +155,13 @@ impl Model {
                 e1: q.exponents[0],
                 e2: q.exponents[1],
                 weight: q.weight,
+                cut: reach.powf(q.exponents[0] / 2.0),
             });
         }
         Ok(Model {
             prims: out,
             threshold,
-            reach: 1.0 / (1.0 - threshold.cbrt()),
+            reach,
         })
     }
 
@@ -182,6 +197,9 @@ impl Model {
             .iter()
             .map(|q| {
                 let l = q.to_local * (p - q.centre);
+                if l.amax() >= q.cut {
+                    return 0.0; // out of the primitive's reach: skips the powers
+                }
                 self.density(Self::inside_outside(q, [l.x, l.y, l.z]), q.weight)
             })
             .sum()

@@ -1,31 +1,47 @@
 //! Polygonising an implicit surface (a [`Model`]'s `field = threshold`) into a watertight,
-//! consistently oriented triangle mesh (Terasawa §5.3's point: no piece of surface smaller
-//! than a cell is dropped).
+//! consistently oriented triangle mesh, graded by curvature, that keeps every piece of surface
+//! down to a quarter of the resolution (Terasawa §5.3's point: no thin part is dropped).
 //!
 //! 1. An octree over the model's bounds keeps only the cells whose field interval
-//!    ([`Model::interval`]) holds the threshold, down to cells of at most `resolution`: the
-//!    surface's cells, at one uniform finest size, without visiting the empty space.
-//! 2. A finest cell whose interval holds the threshold while its eight corners all lie on one
+//!    ([`Model::interval`]) holds the threshold, down to a base grid of the resolution or
+//!    [`BASE_CELLS_ACROSS`] cells across the model, whichever is coarser: the surface's cells,
+//!    without visiting the empty space.
+//! 2. A base cell whose interval holds the threshold while its eight corners all lie on one
 //!    side hides a piece of surface thinner than a cell (a thin plate, a sharp tip): then the
-//!    whole grid is halved and the search runs again, up to [`MAX_EXTRA_LEVELS`] times and
+//!    whole grid is halved and the search runs again, down to a quarter of the resolution and
 //!    while the finer grid stays within [`REFINE_CELLS`] (its surface cells grow fourfold);
-//!    past that the mesh is kept at the coarser grid and [`Surface::hidden_cells`] says how
-//!    many cells may hide thin parts.
+//!    past that [`Surface::hidden_cells`] says how many cells may hide thin parts.
 //! 3. Marching tetrahedra on those cells (each cube in the six Kuhn tetrahedra along its main
 //!    diagonal, which neighbouring cubes split the same way): vertices on grid edges shared by
 //!    key, so every edge of the mesh has exactly two triangles; each triangle faces away from
-//!    its tetrahedron's inside corners; vertex normals are the field's gradient.
+//!    its tetrahedron's inside corners. The vertices are then moved onto the surface.
+//! 4. [`refine`]: edges are split where the surface bulges away from them by more than a
+//!    [`TOLERANCE_PER_RESOLUTION`] of the resolution, down to edges of a quarter of it, so
+//!    the mesh is fine where the surface bends and coarse where it is flat. Vertex normals
+//!    are the field's gradient.
+
+mod refine;
 
 use crate::superquadric::Model;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use std::collections::HashMap;
 
 type V3 = Vector3<f64>;
 
-/// Times the grid may be halved to catch surface hidden inside a cell.
+/// The base grid's cells across the model's largest extent, at most (a finer resolution is
+/// reached by grading, not by a finer grid).
+pub const BASE_CELLS_ACROSS: f64 = 128.0;
+/// How far below the resolution the grid may be halved to catch surface hidden inside a
+/// cell: a quarter of it.
 pub const MAX_EXTRA_LEVELS: u32 = 2;
 /// Most surface cells a polygonisation may keep (about 100 bytes each).
 pub const MAX_CELLS: usize = 20_000_000;
+/// The largest distance between the mesh's edges and the surface, as a fraction of the
+/// resolution.
+pub const TOLERANCE_PER_RESOLUTION: f64 = 0.05;
+/// Most triangles grading may make.
+pub const MAX_TRIANGLES: usize = 20_000_000;
 /// Most surface cells a refinement for hidden surface may lead to.
 pub const REFINE_CELLS: usize = 2_000_000;
 
@@ -40,6 +56,9 @@ pub struct Surface {
     /// Cells that may still hide surface thinner than a cell (refinement stopped at its
     /// budget); 0 when none.
     pub hidden_cells: usize,
+    /// Edges left coarser than the tolerance asks because grading reached
+    /// [`MAX_TRIANGLES`]; 0 when none.
+    pub ungraded_edges: usize,
 }
 
 /// The six Kuhn tetrahedra of a cube, as corner indices (`corner = x + 2y + 4z`).
@@ -143,13 +162,15 @@ pub fn polygonise(model: &Model, resolution: f64) -> Result<Surface, String> {
     }
     let (lo, hi) = model.bounds();
     let extent = (hi - lo).max();
-    let mut levels = (extent / resolution).log2().ceil().max(1.0) as u32;
-    if levels > 20 {
+    if (extent / resolution).log2() > 20.0 {
         return Err(format!(
             "resolution {resolution} m is too fine for a model {extent} m across"
         ));
     }
-    for extra in 0..=MAX_EXTRA_LEVELS {
+    let base = resolution.max(extent / BASE_CELLS_ACROSS);
+    let mut levels = (extent / base).log2().ceil().max(1.0) as u32;
+    let finest_levels = (extent / resolution).log2().ceil().max(1.0) as u32 + MAX_EXTRA_LEVELS;
+    loop {
         let n = 1u64 << levels;
         let h = extent / n as f64;
         let cells = surface_cells(model, lo, h, n)?;
@@ -188,15 +209,47 @@ pub fn polygonise(model: &Model, resolution: f64) -> Result<Surface, String> {
             .into_iter()
             .filter(|&first| !grid.inside_nearby(first))
             .count();
-        if hiding > 0 && extra < MAX_EXTRA_LEVELS && cells.len() * 4 <= REFINE_CELLS {
+        if hiding > 0 && levels < finest_levels && cells.len() * 4 <= REFINE_CELLS {
             levels += 1;
             continue;
         }
         let mut surface = march(&mut grid, &corner_ids);
         surface.hidden_cells = hiding;
+        let step = resolution * 0.01;
+        surface.positions = surface
+            .positions
+            .par_iter()
+            .map(|p| {
+                let q = refine::project(model, V3::from(*p), step, h);
+                [q.x, q.y, q.z]
+            })
+            .collect();
+        surface.ungraded_edges = refine::refine(
+            model,
+            &mut surface.positions,
+            &mut surface.triangles,
+            refine::Grading {
+                tolerance: resolution * TOLERANCE_PER_RESOLUTION,
+                shortest_edge: resolution / 4.0,
+                gradient_step: step,
+                max_triangles: MAX_TRIANGLES,
+            },
+        );
+        surface.normals = surface
+            .positions
+            .par_iter()
+            .map(|p| {
+                let g = model.gradient(&V3::from(*p), step);
+                let n = if g.norm() > 0.0 {
+                    -g.normalize()
+                } else {
+                    V3::z()
+                };
+                [n.x, n.y, n.z]
+            })
+            .collect();
         return Ok(surface);
     }
-    unreachable!("the loop returns on its last pass")
 }
 
 /// Halvings of a cell [`hidden_inside`] searches (a sixteenth of the cell).
@@ -284,20 +337,6 @@ fn march(grid: &mut Grid, cells: &[[u64; 8]]) -> Surface {
             }
         }
     }
-    let h = grid.h * 0.25;
-    surface.normals = surface
-        .positions
-        .iter()
-        .map(|p| {
-            let g = grid.model.gradient(&V3::from(*p), h);
-            let n = if g.norm() > 0.0 {
-                -g.normalize()
-            } else {
-                V3::z()
-            };
-            [n.x, n.y, n.z]
-        })
-        .collect();
     surface
 }
 
@@ -389,6 +428,47 @@ mod tests {
         );
         assert!(s.is_watertight());
         assert_eq!(s.components(), 1);
+    }
+
+    #[test]
+    fn triangles_are_small_where_the_surface_bends_and_large_where_it_is_flat() {
+        // A lens: flat faces (radius of curvature 1.8 m at the poles), a rim of radius 8 mm.
+        let m = Model::new(&[prim([0.0; 3], [0.3, 0.3, 0.05], [1.0, 1.0])], 0.5).unwrap();
+        let resolution = 0.002;
+        let s = polygonise(&m, resolution).unwrap();
+        assert!(s.is_watertight());
+        let edge = |zone: &dyn Fn(&V3) -> bool| {
+            let mut lengths = Vec::new();
+            for t in &s.triangles {
+                let p = t.map(|i| V3::from(s.positions[i as usize]));
+                if p.iter().all(zone) {
+                    lengths.extend((0..3).map(|k| (p[k] - p[(k + 1) % 3]).norm()));
+                }
+            }
+            assert!(!lengths.is_empty());
+            lengths.iter().sum::<f64>() / lengths.len() as f64
+        };
+        let flat = edge(&|p| p.xy().norm() < 0.1);
+        let rim = edge(&|p| p.xy().norm() > 0.29);
+        assert!(flat > 2.0 * rim, "flat {flat} m against rim {rim} m");
+        // Every edge's midpoint lies within the tolerance of the surface, or the edge is one
+        // too short to split.
+        let tolerance = resolution * TOLERANCE_PER_RESOLUTION;
+        for t in &s.triangles {
+            for k in 0..3 {
+                let (a, b) = (
+                    V3::from(s.positions[t[k] as usize]),
+                    V3::from(s.positions[t[(k + 1) % 3] as usize]),
+                );
+                if (a - b).norm() < resolution / 4.0 {
+                    continue;
+                }
+                let middle = (a + b) * 0.5;
+                let g = m.gradient(&middle, 1e-5);
+                let distance = (m.field(&middle) - m.threshold()).abs() / g.norm();
+                assert!(distance < 1.5 * tolerance, "{distance} m off at {middle:?}");
+            }
+        }
     }
 
     #[test]
