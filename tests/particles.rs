@@ -2,7 +2,8 @@
 //! usd-core reads each emitter's `Points` (counts rising for streams and falling as bursts
 //! die, smoke's widths growing and opacity fading, ids with every point), Blender imports
 //! them as point clouds whose point counts change over time and stay above the floor; a glTF
-//! output gets the particles in a USD stage beside it; the same scene gives the same bytes;
+//! output holds the particles as nodes with keys (validator, Blender) and all of them in a USD
+//! stage beside it; the same scene gives the same bytes;
 //! a `follow` that names no body is refused with exit code 2.
 #![allow(clippy::unwrap_used)]
 
@@ -154,9 +155,64 @@ fn a_gltf_bake_writes_its_particles_beside_it_and_the_same_scene_the_same_bytes(
     let d = dir.path();
     baked(d, "fx.glb");
     let first = std::fs::read(d.join("fx.particles.usda")).unwrap();
+    let first_glb = std::fs::read(d.join("fx.glb")).unwrap();
     baked(d, "fx.glb");
     assert_eq!(first, std::fs::read(d.join("fx.particles.usda")).unwrap());
+    assert!(first_glb == std::fs::read(d.join("fx.glb")).unwrap());
     assert!(String::from_utf8_lossy(&first).contains("def Points \"boom\""));
+
+    // In the glTF itself: a node per particle under its emitter's node (the first 2000 of
+    // the burst), one shared mesh, translation and scale keys; the validator passes it and
+    // Blender plays it: the jet's last particle is not there until it is born, the burst's
+    // first flies out and is gone once dead.
+    springbake_testkit::assert_gltf_valid(&d.join("fx.glb"));
+    let out = run_python_client(
+        "particles_gltf_blender.py",
+        &[
+            d.join("fx.glb").to_str().unwrap(),
+            "boom,jet,puff",
+            "jet.700@1/48,boom.0@1/10/48",
+        ],
+    );
+    let report = last_json_line(&out);
+    assert_eq!(report["children"]["boom"], 2000, "{report}");
+    assert_eq!(report["children"]["puff"], 300, "{report}");
+    let jet = report["children"]["jet"].as_u64().unwrap();
+    assert!((700..=800).contains(&jet), "400 a second for 2 s: {report}");
+    let row = |name: &str, k: usize| -> Vec<f64> {
+        let r = &report["particles"][name][k];
+        (0..4).map(|i| r[i].as_f64().unwrap()).collect()
+    };
+    assert_eq!(row("jet.700", 0)[3], 0.0, "not born at frame 1: {report}");
+    assert!(row("jet.700", 1)[3] > 0.0, "alive at frame 48: {report}");
+    let (start, flying) = (row("boom.0", 0), row("boom.0", 1));
+    assert!(start[3] > 0.0 && flying[3] > 0.0, "{report}");
+    // Blender's Z-up: the burst starts 1.5 m up and its particles fly apart.
+    assert!((start[2] - 1.5).abs() < 0.2, "{report}");
+    let moved: f64 = (0..3)
+        .map(|k| (flying[k] - start[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(moved > 0.5, "moved {moved} m: {report}");
+    assert_eq!(
+        row("boom.0", 2)[3],
+        0.0,
+        "dead by 2 s (lifetime ≤ 1.5 s): {report}"
+    );
+
+    // springbake's viewer opens the glTF with its thousands of particle nodes and renders a
+    // frame (a smoke test: what it draws was looked at by hand, see docs/benchmarks.md).
+    let png = d.join("shot.png");
+    let args = [
+        "view",
+        "fx.glb",
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--frame",
+        "12",
+    ];
+    succeeded(&springbake_in(d, &args));
+    assert!(png.exists());
 
     let out = bake(d, "wrong.usda", "nobody");
     assert_eq!(out.status.code(), Some(2));

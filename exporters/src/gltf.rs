@@ -18,6 +18,9 @@
 //!   `Σ wⱼ · world · (v − restⱼ + nodeⱼ(t))` is exactly the mesh's world transform applied to
 //!   the trilinearly embedded vertex (glTF ignores the skinned node's own transform).
 //!
+//! Particle effects go in as a node per particle with translation and scale keys
+//! ([`particles`]).
+//!
 //! Output is deterministic: JSON objects are ordered maps and everything is appended in a
 //! fixed order.
 
@@ -25,6 +28,7 @@ pub(crate) mod builder;
 mod static_mesh;
 pub use static_mesh::{static_glb, StaticMesh};
 mod compact;
+pub mod particles;
 mod pca;
 mod posed;
 mod rigid;
@@ -118,6 +122,10 @@ impl Exporter for GltfExporter {
                 }
             }
         }
+        for (keys, node, path, interpolation) in particles::add_particles(&mut b, &baked.particles)
+        {
+            anim.add_with(time_accessor, keys, node, path, interpolation);
+        }
         if !anim.channels.is_empty() {
             b.push(
                 "animations",
@@ -206,9 +214,13 @@ struct Animation {
 
 impl Animation {
     fn add(&mut self, input: usize, output: usize, node: usize, path: &str) {
+        self.add_with(input, output, node, path, "LINEAR");
+    }
+
+    fn add_with(&mut self, input: usize, output: usize, node: usize, path: &str, how: &str) {
         let sampler = self.samplers.len();
         self.samplers
-            .push(json!({"input": input, "output": output, "interpolation": "LINEAR"}));
+            .push(json!({"input": input, "output": output, "interpolation": how}));
         self.channels
             .push(json!({"sampler": sampler, "target": {"node": node, "path": path}}));
     }
