@@ -1,6 +1,7 @@
 //! Particle effects (issue 20 part 1, Terasawa §2.3) through the CLI and their real clients:
 //! usd-core reads each emitter's `Points` (counts rising for streams and falling as bursts
-//! die, smoke's widths growing and opacity fading, ids with every point), Blender imports
+//! die, smoke's widths growing and opacity fading, ids with every point) and a fountain's
+//! streaks (a segment per particle along its motion), Blender imports
 //! them as point clouds whose point counts change over time and stay above the floor; a glTF
 //! output holds the particles as nodes with keys (validator, Blender) and all of them in a USD
 //! stage beside it; the same scene gives the same bytes;
@@ -130,6 +131,24 @@ fn usd_core_and_blender_read_the_emitters_point_clouds() {
         column(&usd, "/root/particles/ring", 0),
         column(&usd, "/root/particles/ring", 3),
         "an id per point"
+    );
+
+    // The fountain's water is drawn as streaks too (§2.3.2): a segment per particle,
+    // half a frame of its travel long, along it; only the fountain has them by default.
+    let streaks = last_json_line(&run_python_client(
+        "particles_streaks.py",
+        &[stage.as_str(), "/root/particles/jet", "24"],
+    ));
+    assert_eq!(streaks["segments"], streaks["points"], "{streaks}");
+    assert!(streaks["segments"].as_u64().unwrap() > 300, "{streaks}");
+    assert!(streaks["cosine"].as_f64().unwrap() > 0.999, "{streaks}");
+    assert!(
+        (streaks["length_ratio"].as_f64().unwrap() - 0.5).abs() < 0.01,
+        "{streaks}"
+    );
+    assert_eq!(
+        streaks["streak_prims"],
+        serde_json::json!(["/root/particles/jet_streaks"])
     );
 
     let blender = last_json_line(&run_python_client("particles_blender.py", &args));

@@ -42,6 +42,8 @@ pub struct BakedScene {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BakedParticles {
     pub name: String,
+    /// Drawn as streaks along their motion too (a fountain's water).
+    pub streaks: bool,
     /// One per output frame.
     pub frames: Vec<crate::particles::ParticleFrame>,
 }

@@ -100,6 +100,10 @@ pub struct EmitterSection {
     /// Seed of the emitter's random stream.
     #[serde(default)]
     pub seed: u64,
+    /// Draw each particle as a streak along its motion too (§2.3.2's water; default: on for
+    /// fountains, off for the others).
+    #[serde(default)]
+    pub streaks: Option<bool>,
 }
 
 fn default_count() -> usize {
@@ -464,6 +468,19 @@ impl ParticleSystem {
         };
         self.emitters[e].spec.stop = Some(time);
         true
+    }
+
+    /// Per emitter: whether its particles are drawn as streaks too (`streaks`, default on
+    /// for fountains).
+    pub fn streaks(&self) -> Vec<bool> {
+        self.emitters
+            .iter()
+            .map(|e| {
+                e.spec
+                    .streaks
+                    .unwrap_or(e.spec.kind == EmitterKind::Fountain)
+            })
+            .collect()
     }
 
     pub fn names(&self) -> Vec<String> {

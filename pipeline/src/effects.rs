@@ -109,8 +109,10 @@ impl Effects {
             .map(|s| {
                 s.names()
                     .into_iter()
-                    .map(|name| BakedParticles {
+                    .zip(s.streaks())
+                    .map(|(name, streaks)| BakedParticles {
                         name,
+                        streaks,
                         frames: Vec::new(),
                     })
                     .collect()

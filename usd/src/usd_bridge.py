@@ -797,7 +797,8 @@ def _clear_zip_times(path):
 def _author_particles(stage, particles, parent):
     """One UsdGeom.Points per emitter under `parent`/particles: points, widths, ids, extent
     and the primvar displayOpacity sampled at every frame (time code = frame index), a
-    particle count that changes from frame to frame."""
+    particle count that changes from frame to frame; and `<emitter>_streaks` curves for an
+    emitter drawn with streaks."""
     if not particles:
         return
     scope = parent.rstrip("/") + "/particles"
@@ -825,3 +826,34 @@ def _author_particles(stage, particles, parent):
             opacity.Set(Vt.FloatArray.FromBuffer(memoryview(frame["opacities"]).cast("B").cast("f")) if n else Vt.FloatArray(), t)
             extent = UsdGeom.Points.ComputeExtent(pts, widths) if n else Vt.Vec3fArray([Gf.Vec3f(0.0), Gf.Vec3f(0.0)])
             extent_attr.Set(extent, t)
+        if item.get("streaks"):
+            _author_streaks(stage, scope + "/" + item["prim"] + "_streaks", item)
+
+
+def _author_streaks(stage, path, item):
+    """A linear BasisCurves of one segment per particle, from its streak's tail to the
+    particle, as wide as the particle, sampled at every frame (a fountain's water)."""
+    curves = UsdGeom.BasisCurves.Define(stage, path)
+    curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+    curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+    curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    curves.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
+        Vt.Vec3fArray([Gf.Vec3f(*item["colour"])])
+    )
+    attrs = (
+        curves.CreateCurveVertexCountsAttr(),
+        curves.CreatePointsAttr(),
+        curves.CreateWidthsAttr(),
+        curves.CreateExtentAttr(),
+    )
+    counts_attr, points_attr, widths_attr, extent_attr = attrs
+    for f, frame in enumerate(item["frames"]):
+        t = Usd.TimeCode(float(f))
+        n = frame["count"]
+        points = _vec3f_array(frame["streak_points"], 2 * n) if n else Vt.Vec3fArray()
+        doubled = Vt.FloatArray.FromBuffer(memoryview(frame["streak_widths"]).cast("B").cast("f")) if n else Vt.FloatArray()
+        counts_attr.Set(Vt.IntArray([2] * n), t)
+        points_attr.Set(points, t)
+        widths_attr.Set(doubled, t)
+        extent = UsdGeom.Curves.ComputeExtent(points, doubled) if n else Vt.Vec3fArray([Gf.Vec3f(0.0), Gf.Vec3f(0.0)])
+        extent_attr.Set(extent, t)
