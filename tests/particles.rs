@@ -405,3 +405,44 @@ fn particles_land_on_a_collider() {
         "without the table it reaches the floor: {no_table:?}"
     );
 }
+
+/// The viewer draws a scene's particles while it steps it (issue 20: "the viewer draws
+/// particles"): the same scene with and without its explosion, rendered at frame 12 with the
+/// same camera (it frames the bodies), differs by thousands of light pixels.
+#[test]
+fn the_viewer_draws_a_scenes_particles() {
+    let dir = with_icosphere();
+    let d = dir.path();
+    let scene = "[output]\nframes = 24\n[world]\nfloor = 0.0\n\
+                 [[body]]\nname = \"ball\"\nsource = \"icosphere.glb\"\ncells = 6\n";
+    let burst = "[[emitter]]\nkind = \"explosion\"\nposition = [0, 1.5, 0]\ncount = 2000\n\
+                 speed = [2, 5]\nlifetime = [0.5, 1.5]\nsize = [0.03, 0.03]\n";
+    std::fs::write(d.join("plain.toml"), scene).unwrap();
+    std::fs::write(d.join("burst.toml"), format!("{scene}{burst}")).unwrap();
+    let render = |name: &str| {
+        let png = d.join(format!("{name}.png"));
+        let toml = format!("{name}.toml");
+        let args = [
+            "view",
+            &toml,
+            "--screenshot",
+            png.to_str().unwrap(),
+            "--frame",
+            "12",
+        ];
+        succeeded(&springbake_in(d, &args));
+        support::decode_png(&std::fs::read(&png).unwrap()).2
+    };
+    let (plain, burst) = (render("plain"), render("burst"));
+    assert_eq!(plain.len(), burst.len());
+    let particles = plain
+        .chunks_exact(4)
+        .zip(burst.chunks_exact(4))
+        .filter(|(a, b)| {
+            let light = b[..3].iter().all(|&c| c > 120);
+            let changed = (0..3).any(|k| a[k].abs_diff(b[k]) > 30);
+            light && changed
+        })
+        .count();
+    assert!(particles > 2000, "{particles} particle pixels");
+}

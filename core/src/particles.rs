@@ -39,6 +39,28 @@ pub enum EmitterKind {
     Smoke,
 }
 
+/// The shape a particle is drawn as where a format or a viewer needs geometry: an
+/// octahedron of radius 1 (scaled to half the particle's width), its corners and its
+/// outward, counter-clockwise faces.
+pub const OCTAHEDRON_CORNERS: [[f32; 3]; 6] = [
+    [1.0, 0.0, 0.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, -1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [0.0, 0.0, -1.0],
+];
+pub const OCTAHEDRON_FACES: [[u32; 3]; 8] = [
+    [0, 2, 4],
+    [2, 1, 4],
+    [1, 3, 4],
+    [3, 0, 4],
+    [2, 0, 5],
+    [1, 2, 5],
+    [3, 1, 5],
+    [0, 3, 5],
+];
+
 /// `[[emitter]]`: a particle source (module docs).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]

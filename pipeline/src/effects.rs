@@ -217,6 +217,31 @@ impl Effects {
         }
     }
 
+    /// The particles alive at `time` that can be seen (opacity above zero), in the world's
+    /// frame: position and width, m (what a viewer draws while it steps the world).
+    pub fn visible_now(&self, time: f64) -> Vec<(Vector3<f64>, f64)> {
+        let Some(system) = self.system.as_ref() else {
+            return Vec::new();
+        };
+        let frames = system.snapshot(time, |v| [v.x as f32, v.y as f32, v.z as f32]);
+        frames
+            .iter()
+            .flat_map(|f| {
+                f.positions
+                    .iter()
+                    .zip(&f.widths)
+                    .zip(&f.opacities)
+                    .filter(|(_, &o)| o > 0.0)
+                    .map(|((p, &w), _)| {
+                        (
+                            Vector3::new(p[0].into(), p[1].into(), p[2].into()),
+                            w.into(),
+                        )
+                    })
+            })
+            .collect()
+    }
+
     /// Every emitter's frames.
     pub fn finish(self) -> Vec<BakedParticles> {
         self.recorded

@@ -13,7 +13,7 @@
 
 pub mod budget;
 mod colliders;
-mod effects;
+pub mod effects;
 pub mod events;
 mod frame;
 pub mod inspect;

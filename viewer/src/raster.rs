@@ -6,6 +6,7 @@
 
 use crate::camera::{OrbitCamera, ScreenPoint};
 use springbake_core::nalgebra::Vector3;
+use springbake_core::particles::{OCTAHEDRON_CORNERS, OCTAHEDRON_FACES};
 use springbake_core::solver::Capsule;
 
 /// Background colour of screenshots and the 3-D view.
@@ -658,6 +659,31 @@ pub fn wall_meshes(lo: [f64; 3], hi: [f64; 3], up: usize, base: f64) -> DrawMesh
         triangles,
         colour: COLLIDER_COLOUR,
     }
+}
+
+/// Colour of particles.
+pub const PARTICLE_COLOUR: [u8; 3] = [218, 218, 218];
+
+/// Particles (centre, width in m) as one mesh of octahedra as wide as each
+/// ([`springbake_core::particles::OCTAHEDRON_CORNERS`]).
+pub fn particle_octahedra(particles: &[(Vector3<f64>, f64)]) -> DrawMesh {
+    let mut mesh = DrawMesh {
+        positions: Vec::with_capacity(particles.len() * 6),
+        triangles: Vec::with_capacity(particles.len() * 8),
+        colour: PARTICLE_COLOUR,
+        texture: None,
+    };
+    for (centre, width) in particles {
+        let first = mesh.positions.len() as u32;
+        mesh.positions.extend(
+            OCTAHEDRON_CORNERS
+                .iter()
+                .map(|c| centre + Vector3::from(c.map(f64::from)) * (width * 0.5)),
+        );
+        mesh.triangles
+            .extend(OCTAHEDRON_FACES.iter().map(|t| t.map(|k| first + k)));
+    }
+    mesh
 }
 
 /// A closed triangle mesh of a capsule: `segments` around the axis, `rings` per hemispherical

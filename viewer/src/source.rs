@@ -5,7 +5,8 @@
 //! lattice-skin glTF is drawn in its rest pose (skinning is not evaluated).
 
 use crate::raster::{
-    capsule_mesh, wall_meshes, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR, COLLIDER_COLOUR,
+    capsule_mesh, particle_octahedra, wall_meshes, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR,
+    COLLIDER_COLOUR,
 };
 use crate::ViewerError;
 use serde_json::Value;
@@ -16,6 +17,7 @@ use springbake_core::solver::Capsule;
 use springbake_importers::gltf::accessor::read_floats;
 use springbake_importers::gltf::document::{get_usize, load_document, GltfDocument};
 use springbake_importers::gltf::GltfImporter;
+use springbake_pipeline::effects::Effects;
 use springbake_pipeline::{LoadedScene, MeshOverrides, Prepared, Seconds};
 use std::path::Path;
 
@@ -27,6 +29,9 @@ pub struct Simulation {
     pub triangles: Vec<Vec<[u32; 3]>>,
     /// 1-based output frame the world is at (1 = the initial state).
     pub frame: usize,
+    /// The scene's particle effects, stepped with the world (events do not start emitters
+    /// here: the viewer does not run the scene's events).
+    effects: Effects,
 }
 
 impl Simulation {
@@ -38,11 +43,14 @@ impl Simulation {
             .iter()
             .map(|b| prepared.export_scene.meshes[b.mesh_index].triangles())
             .collect();
+        let mut effects = Effects::new(&loaded.scene, &prepared)?;
+        effects.start(&prepared);
         Ok(Simulation {
             loaded,
             prepared,
             triangles,
             frame: 1,
+            effects,
         })
     }
 
@@ -58,8 +66,18 @@ impl Simulation {
             self.prepared
                 .world
                 .advance_frame(dt, self.frame, &|| false)?;
+            let start = (self.frame - 2) as f64 * dt;
+            self.effects.advance(&self.prepared, start, dt);
         }
         Ok(())
+    }
+
+    /// The particles alive now, one small octahedron each as wide as the particle, in one
+    /// mesh (none without emitters).
+    pub fn particle_mesh(&self) -> Option<DrawMesh> {
+        let time = (self.frame - 1) as f64 / self.fps();
+        let particles = self.effects.visible_now(time);
+        (!particles.is_empty()).then(|| particle_octahedra(&particles))
     }
 
     /// The bodies' display meshes now, in simulation metres.
@@ -103,6 +121,7 @@ impl Simulation {
             triangles: c.triangles.clone(),
             colour: COLLIDER_COLOUR,
         }));
+        out.extend(self.particle_mesh());
         let settings = &self.prepared.world.settings;
         if let Some([lo, hi]) = springbake_core::bake::room_of(&settings.planes, &settings.up) {
             let up = self.prepared.frame.up.index();

@@ -11,22 +11,10 @@
 use super::builder::DocBuilder;
 use serde_json::json;
 use springbake_core::bake::BakedParticles;
+use springbake_core::particles::{OCTAHEDRON_CORNERS, OCTAHEDRON_FACES};
 
 /// Most particles of one emitter written into a glTF (by emission order).
 pub const MAX_PARTICLES_PER_EMITTER: usize = 2000;
-
-/// An octahedron of radius 1: its vertices and triangles (outward, counter-clockwise).
-const OCTAHEDRON: [[f32; 3]; 6] = [
-    [1.0, 0.0, 0.0],
-    [-1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, -1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [0.0, 0.0, -1.0],
-];
-const OCTAHEDRON_TRIANGLES: [u32; 24] = [
-    0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5,
-];
 
 /// One animation channel to add: (keys accessor, node, path, interpolation).
 pub(super) type Channel = (usize, usize, &'static str, &'static str);
@@ -81,9 +69,9 @@ pub(super) fn add_particles(b: &mut DocBuilder, emitters: &[BakedParticles]) -> 
 
 /// The shared particle mesh: a light grey octahedron of radius 1 (scaled per particle).
 fn particle_mesh(b: &mut DocBuilder) -> usize {
-    let positions = b.vec3(&OCTAHEDRON, true);
-    let normals = b.vec3(&OCTAHEDRON, false);
-    let indices = b.indices(&OCTAHEDRON_TRIANGLES);
+    let positions = b.vec3(&OCTAHEDRON_CORNERS, true);
+    let normals = b.vec3(&OCTAHEDRON_CORNERS, false);
+    let indices = b.indices(OCTAHEDRON_FACES.as_flattened());
     let material = b.push(
         "materials",
         json!({"name": "springbake particle",
