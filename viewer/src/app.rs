@@ -189,12 +189,8 @@ impl ViewerApp {
             return;
         };
         let up = self.camera.up;
-        let bodies = || {
-            meshes
-                .iter()
-                .filter(|m| m.colour == raster::BODY_COLOUR)
-                .flat_map(|m| m.positions.iter())
-        };
+        let count = self.source.as_ref().map_or(0, ViewSource::body_count);
+        let bodies = || meshes.iter().take(count).flat_map(|m| m.positions.iter());
         let top = bodies()
             .map(|p| up.dot(p))
             .fold(f64::NEG_INFINITY, f64::max);
@@ -264,6 +260,7 @@ impl ViewerApp {
                         .iter()
                         .map(|m| capsule_mesh(&m.capsule_at(w.time), 24, 6, CAPSULE_COLOUR)),
                 );
+                out.extend(sim.particle_mesh());
                 Ok(out)
             }
             ViewSource::Baked(b) => Ok(b.meshes_at(frame)),

@@ -32,6 +32,8 @@ pub struct Simulation {
     /// The scene's particle effects, stepped with the world (events do not start emitters
     /// here: the viewer does not run the scene's events).
     effects: Effects,
+    /// Each body's base-colour texture over its UVs, when its material has one.
+    textures: Vec<Option<std::sync::Arc<crate::raster::TexturedSurface>>>,
 }
 
 impl Simulation {
@@ -45,12 +47,21 @@ impl Simulation {
             .collect();
         let mut effects = Effects::new(&loaded.scene, &prepared)?;
         effects.start(&prepared);
+        let textures = prepared
+            .bodies
+            .iter()
+            .map(|b| {
+                let scene = &prepared.export_scene;
+                surface_texture(scene, &scene.meshes[b.mesh_index])
+            })
+            .collect();
         Ok(Simulation {
             loaded,
             prepared,
             triangles,
             frame: 1,
             effects,
+            textures,
         })
     }
 
@@ -80,19 +91,24 @@ impl Simulation {
         (!particles.is_empty()).then(|| particle_octahedra(&particles))
     }
 
-    /// The bodies' display meshes now, in simulation metres.
+    /// The bodies' display meshes now, in simulation metres, in their material's base colour
+    /// and texture (springbake's body colour where the source gives none).
     pub fn body_meshes(&self) -> Vec<DrawMesh> {
+        let scene = &self.prepared.export_scene;
         (0..self.prepared.bodies.len())
-            .map(|b| DrawMesh {
-                texture: None,
-                positions: self
-                    .prepared
-                    .vertex_positions(b)
-                    .iter()
-                    .map(|p| p.coords)
-                    .collect(),
-                triangles: self.triangles[b].clone(),
-                colour: BODY_COLOUR,
+            .map(|b| {
+                let mesh = &scene.meshes[self.prepared.bodies[b].mesh_index];
+                DrawMesh {
+                    texture: self.textures[b].clone(),
+                    positions: self
+                        .prepared
+                        .vertex_positions(b)
+                        .iter()
+                        .map(|p| p.coords)
+                        .collect(),
+                    triangles: self.triangles[b].clone(),
+                    colour: material_colour(scene, mesh).unwrap_or(BODY_COLOUR),
+                }
             })
             .collect()
     }
@@ -234,7 +250,24 @@ fn base_colour(doc: &GltfDocument, mesh: usize) -> Option<[u8; 3]> {
         .take(3)
         .map(|c| c.as_f64())
         .collect::<Option<Vec<f64>>>()?;
-    let srgb = |c: f64| {
+    (factor.len() == 3).then(|| srgb([factor[0], factor[1], factor[2]]))
+}
+
+/// The sRGB base colour of `mesh`'s first primitive's material, as the importer read it
+/// (white under a texture: the image carries the colour).
+fn material_colour(
+    scene: &springbake_core::display::ImportedScene,
+    mesh: &springbake_core::display::DisplayMesh,
+) -> Option<[u8; 3]> {
+    let name = mesh.primitives.first()?.material.as_ref()?;
+    let material = scene.materials.iter().find(|m| &m.name == name)?;
+    let c = material.base_colour.map(f64::from);
+    Some(srgb([c[0], c[1], c[2]]))
+}
+
+/// Linear RGB in [0, 1] as 8-bit sRGB.
+fn srgb(linear: [f64; 3]) -> [u8; 3] {
+    linear.map(|c| {
         let c = c.clamp(0.0, 1.0);
         let s = if c <= 0.003_130_8 {
             12.92 * c
@@ -242,8 +275,7 @@ fn base_colour(doc: &GltfDocument, mesh: usize) -> Option<[u8; 3]> {
             1.055 * c.powf(1.0 / 2.4) - 0.055
         };
         (s * 255.0).round() as u8
-    };
-    (factor.len() == 3).then(|| [srgb(factor[0]), srgb(factor[1]), srgb(factor[2])])
+    })
 }
 
 /// `extras.springbake_stage` of a baked glTF (written by springbake's exporter): the floor and
@@ -412,6 +444,14 @@ impl ViewSource {
         Ok(ViewSource::Simulated(Box::new(Simulation::new(
             registry, loaded,
         )?)))
+    }
+
+    /// How many of the meshes drawn for a frame are bodies (they come first).
+    pub fn body_count(&self) -> usize {
+        match self {
+            ViewSource::Simulated(s) => s.prepared.bodies.len(),
+            ViewSource::Baked(b) => b.meshes.len(),
+        }
     }
 
     /// Up vector of what is drawn.

@@ -326,3 +326,26 @@ fn a_pca_cache_plays_its_rigid_keys_as_the_morph_cache_does() {
         assert!(worst < 1.1e-3, "frame {frame}: {worst} m apart");
     }
 }
+
+/// A simulated body is drawn in its material's base colour (issue 21: "the mesh's own base
+/// colour"): the cube with a blue `.mtl` material renders blue where the plain one renders
+/// springbake's orange.
+#[test]
+fn a_simulated_body_takes_its_materials_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    let obj = format!("mtllib cube.mtl\nusemtl Blue\n{CUBE_OBJ}");
+    std::fs::write(dir.path().join("cube.obj"), obj).unwrap();
+    std::fs::write(
+        dir.path().join("cube.mtl"),
+        "newmtl Blue\nKd 0.05 0.1 0.8\n",
+    )
+    .unwrap();
+    let blue = shot(&scene, &dir.path().join("blue.png"), 1);
+    let centre = blue.pixel(80, 60);
+    assert!(
+        centre[2] as i32 > centre[0] as i32 + 60,
+        "blue body: {centre:?}"
+    );
+    assert_eq!(blue.object().0, 0, "no orange body pixels");
+}
