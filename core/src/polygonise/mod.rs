@@ -61,16 +61,6 @@ pub struct Surface {
     pub ungraded_edges: usize,
 }
 
-/// The six Kuhn tetrahedra of a cube, as corner indices (`corner = x + 2y + 4z`).
-const TETS: [[usize; 4]; 6] = [
-    [0, 1, 3, 7],
-    [0, 1, 5, 7],
-    [0, 2, 3, 7],
-    [0, 2, 6, 7],
-    [0, 4, 5, 7],
-    [0, 4, 6, 7],
-];
-
 struct Grid<'a> {
     model: &'a Model,
     origin: V3,
@@ -280,7 +270,9 @@ fn march(grid: &mut Grid, cells: &[[u64; 8]]) -> Surface {
     };
     let mut on_edge: HashMap<(u64, u64), u32> = HashMap::new();
     for ids in cells {
-        for tet in TETS {
+        // The six Kuhn tetrahedra of the cube (corner = x + 2y + 4z), as the volume term splits
+        // a cell.
+        for tet in crate::solver::volume::TETS {
             let v = tet.map(|c| ids[c]);
             let s = v.map(|id| grid.values[&id]);
             let inside: Vec<usize> = (0..4).filter(|&k| s[k] >= 0.0).collect();
