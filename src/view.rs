@@ -45,6 +45,11 @@ pub struct ViewCommand {
     /// mode, the bodies' top, the view's centre): for tests and bug reports.
     #[arg(long, value_name = "FILE.jsonl")]
     pub trace: Option<PathBuf>,
+    /// Draw over a --screenshot of a scene: `lattice` (every body's springs), `contacts`
+    /// (the surface points the floor, walls, capsules and colliders push), or both,
+    /// comma-separated. A baked file has neither.
+    #[arg(long, value_name = "lattice,contacts", value_delimiter = ',')]
+    pub overlay: Vec<Overlay>,
     /// Image size in pixels, WIDTHxHEIGHT (default 800x600; 480x360 for a flipbook, 320x240
     /// per frame of a sheet).
     #[arg(long, value_parser = parse_size)]
@@ -144,5 +149,16 @@ fn shoot(args: &ViewCommand, output: PathBuf) -> Result<(), ViewerError> {
         height,
         frame_all: args.frame_all,
         camera: args.camera,
+        overlays: springbake_viewer::Overlays {
+            lattice: args.overlay.contains(&Overlay::Lattice),
+            contacts: args.overlay.contains(&Overlay::Contacts),
+        },
     })
+}
+
+/// What `view --overlay` draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Overlay {
+    Lattice,
+    Contacts,
 }

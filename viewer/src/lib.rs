@@ -89,7 +89,25 @@ pub struct ScreenshotArgs {
     pub frame_all: bool,
     /// `(yaw, pitch)` of the view in degrees instead of the default three-quarter view.
     pub camera: Option<(f64, f64)>,
+    /// What is drawn over the picture.
+    pub overlays: Overlays,
 }
+
+/// What a screenshot draws over the scene, in front of everything (a simulated scene's; a
+/// baked file has no lattice or contacts to show).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Overlays {
+    /// Every body's lattice springs (at most [`MAX_OVERLAY_SPRINGS`]).
+    pub lattice: bool,
+    /// The display-surface points a floor, wall, capsule or collider pushes at the frame.
+    pub contacts: bool,
+}
+
+/// Width of an overlay's lines, over the camera's distance.
+const OVERLAY_WIDTH: f64 = 0.002;
+
+/// Most lattice springs an overlay draws.
+pub const MAX_OVERLAY_SPRINGS: usize = 40_000;
 
 impl ScreenshotArgs {
     /// Frame 1 at 800 × 600, framing the bodies at the frame.
@@ -102,6 +120,7 @@ impl ScreenshotArgs {
             height: 600,
             frame_all: false,
             camera: None,
+            overlays: Overlays::default(),
         }
     }
 }
@@ -160,7 +179,14 @@ pub fn render_screenshot(args: &ScreenshotArgs) -> Result<(), ViewerError> {
     };
     let camera = aim(camera, args.camera);
     let size = (args.width, args.height);
-    let image = render_frame(&mut source, &args.input, &camera, args.frame, size)?;
+    let image = render_frame_with(
+        &mut source,
+        &args.input,
+        &camera,
+        args.frame,
+        size,
+        args.overlays,
+    )?;
     let bytes = image.to_png().map_err(|e| ViewerError::Io {
         path: args.output.clone(),
         message: format!("cannot encode the PNG: {e}"),
@@ -185,7 +211,19 @@ pub fn render_frame(
     input: &std::path::Path,
     camera: &OrbitCamera,
     frame: usize,
+    size: (u32, u32),
+) -> Result<raster::Image, ViewerError> {
+    render_frame_with(source, input, camera, frame, size, Overlays::default())
+}
+
+/// [`render_frame`] with `overlays` drawn over it.
+pub fn render_frame_with(
+    source: &mut ViewSource,
+    input: &std::path::Path,
+    camera: &OrbitCamera,
+    frame: usize,
     (width, height): (u32, u32),
+    overlays: Overlays,
 ) -> Result<raster::Image, ViewerError> {
     if frame > source.frame_count() && matches!(source, ViewSource::Baked(_)) {
         return Err(ViewerError::Usage(format!(
@@ -219,7 +257,8 @@ pub fn render_frame(
         meshes.extend(shadows);
         hud += &format!("  grid {}", metres(raster::floor_grid_spacing(lo, hi, up)));
     }
-    let mut image = raster::render(&meshes, camera, width, height);
+    let over = source.overlay_meshes(overlays, OVERLAY_WIDTH * camera.distance);
+    let mut image = raster::render_layers(&meshes, &over, camera, width, height);
     // Twice the font's size where it fits, else its own 8 pixels.
     let scale = if 12 + 16 * hud.chars().count() as u32 <= width {
         2

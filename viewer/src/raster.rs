@@ -312,12 +312,25 @@ const SSAA: u32 = 2;
 
 /// Render `meshes` seen by `camera` into a `width × height` image on `BACKGROUND`.
 pub fn render(meshes: &[DrawMesh], camera: &OrbitCamera, width: u32, height: u32) -> Image {
+    render_layers(meshes, &[], camera, width, height)
+}
+
+/// [`render`], then `overlay` over it (in front of everything, hiding only itself).
+pub fn render_layers(
+    meshes: &[DrawMesh],
+    overlay: &[DrawMesh],
+    camera: &OrbitCamera,
+    width: u32,
+    height: u32,
+) -> Image {
     let (w, h) = (width * SSAA, height * SSAA);
-    let tris = shade(meshes, camera, w as f64, h as f64);
     let mut depth = vec![f64::INFINITY; w as usize * h as usize];
     let mut colour = vec![BACKGROUND; w as usize * h as usize];
-    for t in &tris {
-        fill_triangle(t, w, h, &mut depth, &mut colour);
+    for layer in [meshes, overlay] {
+        depth.fill(f64::INFINITY);
+        for t in &shade(layer, camera, w as f64, h as f64) {
+            fill_triangle(t, w, h, &mut depth, &mut colour);
+        }
     }
     // Box filter down to the output size.
     let mut out = Image::filled(width, height, BACKGROUND);
@@ -659,6 +672,44 @@ pub fn wall_meshes(lo: [f64; 3], hi: [f64; 3], up: usize, base: f64) -> DrawMesh
         triangles,
         colour: COLLIDER_COLOUR,
     }
+}
+
+/// Colours of the overlays: lattice springs, contact points.
+pub const LATTICE_COLOUR: [u8; 3] = [120, 220, 140];
+pub const CONTACT_COLOUR: [u8; 3] = [255, 206, 60];
+
+/// Segments as square rods `width` across, one mesh.
+pub fn rods(segments: &[(Vector3<f64>, Vector3<f64>)], width: f64, colour: [u8; 3]) -> DrawMesh {
+    let mut mesh = DrawMesh {
+        positions: Vec::with_capacity(segments.len() * 8),
+        triangles: Vec::with_capacity(segments.len() * 8),
+        colour,
+        texture: None,
+    };
+    let r = width * 0.5;
+    for (p, q) in segments {
+        let d = q - p;
+        let Some(d) = d.try_normalize(1e-12) else {
+            continue;
+        };
+        let helper = if d.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let u = d.cross(&helper).normalize() * r;
+        let v = d.cross(&u);
+        let first = mesh.positions.len() as u32;
+        for end in [p, q] {
+            mesh.positions.extend([end + u, end + v, end - u, end - v]);
+        }
+        for k in 0..4u32 {
+            let (a, b) = (first + k, first + (k + 1) % 4);
+            mesh.triangles.push([a, b, b + 4]);
+            mesh.triangles.push([a, b + 4, a + 4]);
+        }
+    }
+    mesh
 }
 
 /// Colour of particles.

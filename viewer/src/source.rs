@@ -5,8 +5,8 @@
 //! lattice-skin glTF is drawn in its rest pose (skinning is not evaluated).
 
 use crate::raster::{
-    capsule_mesh, particle_octahedra, wall_meshes, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR,
-    COLLIDER_COLOUR,
+    capsule_mesh, particle_octahedra, rods, wall_meshes, DrawMesh, BODY_COLOUR, CAPSULE_COLOUR,
+    COLLIDER_COLOUR, CONTACT_COLOUR, LATTICE_COLOUR,
 };
 use crate::ViewerError;
 use serde_json::Value;
@@ -444,6 +444,41 @@ impl ViewSource {
         Ok(ViewSource::Simulated(Box::new(Simulation::new(
             registry, loaded,
         )?)))
+    }
+
+    /// The overlays of what is drawn now (lines and markers `width` across): a simulated
+    /// scene's lattice springs and contact points; nothing for a baked file.
+    pub fn overlay_meshes(&self, overlays: crate::Overlays, width: f64) -> Vec<DrawMesh> {
+        let ViewSource::Simulated(sim) = self else {
+            return Vec::new();
+        };
+        let mut out = Vec::new();
+        let world = &sim.prepared.world;
+        if overlays.lattice {
+            let mut springs = Vec::new();
+            for b in &sim.prepared.bodies {
+                let nodes = world.body_positions(b.handle);
+                springs.extend(
+                    b.lattice
+                        .springs
+                        .iter()
+                        .map(|s| (nodes[s.a as usize], nodes[s.b as usize])),
+                );
+            }
+            springs.truncate(crate::MAX_OVERLAY_SPRINGS);
+            out.push(rods(&springs, width, LATTICE_COLOUR));
+        }
+        if overlays.contacts {
+            let points: Vec<(Vector3<f64>, f64)> = world
+                .touching_points()
+                .into_iter()
+                .map(|p| (p, width * 4.0))
+                .collect();
+            let mut markers = particle_octahedra(&points);
+            markers.colour = CONTACT_COLOUR;
+            out.push(markers);
+        }
+        out
     }
 
     /// How many of the meshes drawn for a frame are bodies (they come first).

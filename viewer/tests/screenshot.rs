@@ -7,7 +7,7 @@
 
 use springbake_viewer::raster::{DrawMesh, BACKGROUND};
 use springbake_viewer::source::ViewSource;
-use springbake_viewer::{render_screenshot, ScreenshotArgs, ViewerError};
+use springbake_viewer::{render_screenshot, Overlays, ScreenshotArgs, ViewerError};
 use std::path::Path;
 
 const CUBE_OBJ: &str = "o Cube
@@ -97,6 +97,7 @@ fn shot(input: &Path, output: &Path, frame: usize) -> Decoded {
         // One camera for every frame, so the motion shows as motion in the picture.
         frame_all: true,
         camera: None,
+        overlays: Default::default(),
     };
     render_screenshot(&args).unwrap();
     decode(output)
@@ -348,4 +349,48 @@ fn a_simulated_body_takes_its_materials_colour() {
         "blue body: {centre:?}"
     );
     assert_eq!(blue.object().0, 0, "no orange body pixels");
+}
+
+/// `--overlay lattice,contacts` (issue 21 item 1's overlays): the lattice's springs in green
+/// over the body, and yellow markers where the floor holds the cube once it has landed, none
+/// while it is in the air; without overlays, neither colour.
+#[test]
+fn overlays_draw_the_lattice_and_the_contacts() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "baked.glb");
+    // 24 frames: the cube lands near frame 10 and bounces (rubber).
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(&scene, text.replace("frames = 12", "frames = 24")).unwrap();
+    let render = |frame: usize, lattice: bool, contacts: bool| {
+        let out = dir.path().join(format!("o{frame}{lattice}{contacts}.png"));
+        let args = ScreenshotArgs {
+            frame,
+            width: 320,
+            height: 240,
+            overlays: Overlays { lattice, contacts },
+            ..ScreenshotArgs::new(&scene, &out)
+        };
+        render_screenshot(&args).unwrap();
+        let image = decode(&out);
+        let count = |test: &dyn Fn([u8; 4]) -> bool| {
+            image
+                .rgba
+                .chunks_exact(4)
+                .filter(|p| test([p[0], p[1], p[2], p[3]]))
+                .count()
+        };
+        let green = count(&|p| p[1] as i32 > p[0] as i32 + 50 && p[1] as i32 > p[2] as i32 + 30);
+        let yellow = count(&|p| p[0] > 200 && p[1] > 150 && p[2] < 120);
+        (green, yellow)
+    };
+    let (green, _) = render(1, true, false);
+    assert!(green > 300, "lattice pixels: {green}");
+    let (_, airborne) = render(1, false, true);
+    assert_eq!(airborne, 0, "no contact in the air");
+    let landed: Vec<usize> = (8..=24).map(|f| render(f, false, true).1).collect();
+    assert!(
+        landed.iter().any(|&n| n > 20),
+        "contact markers once landed, frames 8 to 24: {landed:?}"
+    );
+    assert_eq!(render(12, false, false), (0, 0), "no overlay asked for");
 }

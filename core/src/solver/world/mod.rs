@@ -379,6 +379,31 @@ impl World {
         }
     }
 
+    /// Where rigid surfaces (floor, walls, capsules, colliders) pushed the bodies at the last
+    /// substep: the display-surface points and the lattice nodes they moved (what a viewer's
+    /// contact overlay marks). Empty before the first step and under the papers' integrators.
+    pub fn touching_points(&self) -> Vec<Vector3<f64>> {
+        let Some(model) = &self.xpbd else {
+            return Vec::new();
+        };
+        let contact = model.point_contact();
+        let points = (0..contact.len().min(self.surface.len()))
+            .filter(|&i| contact[i].1 > 0.0)
+            .map(|i| {
+                let (w, ids) = (&self.surface.weights[i], &self.surface.nodes[i]);
+                (0..8).fold(Vector3::zeros(), |x, c| {
+                    x + self.nodes.position[ids[c] as usize] * w[c]
+                })
+            });
+        let nodes = model
+            .moved()
+            .iter()
+            .zip(&self.nodes.position)
+            .filter(|(moved, _)| **moved)
+            .map(|(_, x)| *x);
+        points.chain(nodes).collect()
+    }
+
     /// What each body touched during the last [`World::advance_frame`]: one record per
     /// (body, partner) pair, in body order, then partner order (see [`super::contact_log`]).
     pub fn frame_contacts(&self) -> &[ContactRecord] {

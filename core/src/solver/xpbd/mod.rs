@@ -118,6 +118,21 @@ pub(crate) struct StepOutput {
 }
 
 impl Model {
+    /// Per display-surface point: the last constraint pass's (force, depth, force from the
+    /// capsules); empty before the first pass.
+    pub(crate) fn point_contact(&self) -> &[(V3, f64, V3)] {
+        if self.logged_once {
+            &self.point_contact
+        } else {
+            &[]
+        }
+    }
+
+    /// Per node: whether a rigid contact moved it in the last substep.
+    pub(crate) fn moved(&self) -> &[bool] {
+        &self.moved
+    }
+
     pub(crate) fn build(world: &World) -> Model {
         let n = world.nodes.len();
         let mut kept: Vec<u32> = (0..n as u32).collect();
