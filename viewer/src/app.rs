@@ -85,6 +85,8 @@ struct ViewerApp {
     frame_clock: f64,
     last_tick: Instant,
     show_lattice: bool,
+    /// Mark where the floor, walls, capsules and colliders push the bodies.
+    show_contacts: bool,
     live: Option<LiveState>,
     target_fps: f64,
     timer: StepTimer,
@@ -165,6 +167,7 @@ impl ViewerApp {
             frame_clock: 0.0,
             last_tick: Instant::now(),
             show_lattice: false,
+            show_contacts: false,
             live: None,
             target_fps: 30.0,
             timer: StepTimer::default(),
@@ -405,6 +408,7 @@ impl ViewerApp {
         ui.separator();
         let simulated = matches!(self.source, Some(ViewSource::Simulated(_)));
         ui.checkbox(&mut self.show_lattice, "lattice overlay");
+        ui.checkbox(&mut self.show_contacts, "contact overlay");
         if simulated {
             let mut live_on = self.live.is_some();
             if ui
@@ -608,6 +612,21 @@ impl ViewerApp {
                             painter.line_segment([p, q], stroke);
                             drawn += 1;
                         }
+                    }
+                }
+            }
+        }
+        // Contact overlay: a dot where a rigid surface pushed a body at the last substep.
+        if self.show_contacts {
+            if let Some(ViewSource::Simulated(sim)) = &self.source {
+                let colour = egui::Color32::from_rgb(
+                    raster::CONTACT_COLOUR[0],
+                    raster::CONTACT_COLOUR[1],
+                    raster::CONTACT_COLOUR[2],
+                );
+                for p in sim.prepared.world.touching_points() {
+                    if let Some(at) = to_pos(&p) {
+                        painter.circle_filled(at, 2.5, colour);
                     }
                 }
             }
