@@ -454,13 +454,15 @@ def _realise_point_instances(stage, baked_paths):
         if i["path"] in baked_paths
     ]
     layer = stage.GetRootLayer()
-    instancers = set()
+    # Per instancer: its parent's world matrix inverted (the copies sit beside it).
+    parent_inverse = {}
     for instance in instances:
         path = Sdf.Path(instance["path"])
         parent_path = path.GetParentPath()
-        parent_world = UsdGeom.Imageable(
-            stage.GetPrimAtPath(instance["instancer"]).GetParent()
-        ).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+        if instance["instancer"] not in parent_inverse:
+            parent = stage.GetPrimAtPath(instance["instancer"]).GetParent()
+            world = UsdGeom.Imageable(parent).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+            parent_inverse[instance["instancer"]] = world.GetInverse()
         # Plain transforms between the instancer's parent and the copy.
         Sdf.CreatePrimInLayer(layer, parent_path)
         for ancestor in parent_path.GetPrefixes():
@@ -483,10 +485,9 @@ def _realise_point_instances(stage, baked_paths):
         if bound:
             UsdShade.MaterialBindingAPI.Apply(copy.GetPrim()).Bind(bound)
         copy.ClearXformOpOrder()
-        copy.AddTransformOp().Set(instance["world"] * parent_world.GetInverse())
+        copy.AddTransformOp().Set(instance["world"] * parent_inverse[instance["instancer"]])
         copy.GetVisibilityAttr().Set(UsdGeom.Tokens.inherited)
-        instancers.add(instance["instancer"])
-    for location in sorted(instancers):
+    for location in sorted(parent_inverse):
         UsdGeom.Imageable(stage.GetPrimAtPath(location)).MakeInvisible()
 
 

@@ -72,16 +72,19 @@ fn key(a: u32, b: u32) -> (u32, u32) {
 
 impl Edges {
     fn of(triangles: &[[u32; 3]]) -> Edges {
-        let mut map: FxHashMap<(u32, u32), [u32; 2]> = FxHashMap::default();
+        let mut edges = Edges(FxHashMap::default());
         for (t, tri) in triangles.iter().enumerate() {
             for k in 0..3 {
-                let slot = map
-                    .entry(key(tri[k], tri[(k + 1) % 3]))
-                    .or_insert([u32::MAX; 2]);
-                slot[usize::from(slot[0] != u32::MAX)] = t as u32;
+                edges.attach(tri[k], tri[(k + 1) % 3], t as u32);
             }
         }
-        Edges(map)
+        edges
+    }
+
+    /// Triangle `t` is on edge `(a, b)` (the edge's first triangle, or its second).
+    fn attach(&mut self, a: u32, b: u32, t: u32) {
+        let slot = self.0.entry(key(a, b)).or_insert([u32::MAX; 2]);
+        slot[usize::from(slot[0] != u32::MAX)] = t;
     }
 
     /// Edge `(a, b)` is on `new` where it was on `old`.
@@ -149,10 +152,8 @@ impl Mesh<'_> {
             self.triangles[t as usize] = [x, m, z];
             self.triangles.push([m, y, z]);
             self.edges.replace(y, z, t, new);
-            for (from, to, tri) in [(x, m, t), (m, y, new)] {
-                let slot = self.edges.0.entry(key(from, to)).or_insert([u32::MAX; 2]);
-                slot[usize::from(slot[0] != u32::MAX)] = tri;
-            }
+            self.edges.attach(x, m, t);
+            self.edges.attach(m, y, new);
             self.edges.0.insert(key(m, z), [t, new]);
             touched.extend([t, new]);
         }
