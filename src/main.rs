@@ -80,6 +80,12 @@ enum Command {
         /// $SPRINGBAKE_PLUGIN_PATH, ~/.config/springbake/plugins).
         #[arg(long)]
         no_plugins: bool,
+        /// Where the solver runs, over the scene's `[solver] device`: `auto` (a hardware GPU
+        /// for lattices of 32³ nodes and more when the scene uses only what the GPU solver
+        /// runs; the log says which), `gpu` (exit 2 naming what is missing when it cannot), or
+        /// `cpu`.
+        #[arg(long, value_name = "auto|gpu|cpu")]
+        device: Option<springbake_core::scene::DeviceSpec>,
     },
     /// Bake every combination of varied settings ("wedging"), with an index and a contact sheet.
     ///
@@ -227,6 +233,7 @@ fn run(command: Command) -> Result<(), Failure> {
             max_memory,
             progress,
             no_plugins,
+            device,
         } => {
             let overrides = MeshOverrides {
                 output,
@@ -234,6 +241,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 fps,
                 cells,
                 material,
+                device,
             };
             let loaded = load_input(&input, &overrides)?;
             let (registry, found) =

@@ -309,6 +309,34 @@ pub struct SolverSection {
     /// β of Newmark-β: 0.25 (average acceleration) or 1/6 (linear acceleration).
     #[serde(default = "default_beta")]
     pub newmark_beta: f64,
+    /// Where the XPBD solver runs: `"auto"` (default: a GPU for bodies of at least
+    /// `solver::device`'s size when a hardware adapter is there and the scene uses only what it
+    /// runs, else the CPU; the log says which), `"gpu"` (an error when there is none) or
+    /// `"cpu"`.
+    #[serde(default)]
+    pub device: DeviceSpec,
+}
+
+/// `[solver] device` (see [`SolverSection::device`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum DeviceSpec {
+    #[default]
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+impl std::str::FromStr for DeviceSpec {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(DeviceSpec::Auto),
+            "gpu" => Ok(DeviceSpec::Gpu),
+            "cpu" => Ok(DeviceSpec::Cpu),
+            other => Err(format!("unknown device \"{other}\": auto, gpu or cpu")),
+        }
+    }
 }
 
 fn default_beta() -> f64 {
@@ -343,6 +371,7 @@ impl Default for SolverSection {
             max_dispersion_iterations: default_dispersion_iterations(),
             integrator: IntegratorSpec::default(),
             newmark_beta: default_beta(),
+            device: DeviceSpec::default(),
         }
     }
 }

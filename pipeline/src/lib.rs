@@ -13,6 +13,7 @@
 
 pub mod budget;
 mod colliders;
+pub mod device;
 pub mod effects;
 pub mod events;
 mod frame;
@@ -141,6 +142,7 @@ impl PipelineError {
             PipelineError::Simulation(SimulationError::NonFinite { .. }) => true,
             PipelineError::Simulation(SimulationError::Field(_)) => true,
             PipelineError::Simulation(SimulationError::Cancelled) => false,
+            PipelineError::Simulation(SimulationError::Device(_)) => false,
             PipelineError::Io { .. } => false,
         }
     }
@@ -372,6 +374,8 @@ pub struct MeshOverrides {
     pub fps: Option<f64>,
     pub cells: Option<u32>,
     pub material: Option<String>,
+    /// `--device`: where the solver runs, over the scene's `[solver] device`.
+    pub device: Option<springbake_core::scene::DeviceSpec>,
 }
 
 impl MeshOverrides {
@@ -387,6 +391,9 @@ impl MeshOverrides {
         }
         if let Some(f) = self.fps {
             output.fps = f;
+        }
+        if let Some(d) = self.device {
+            scene.solver.device = d;
         }
     }
 }
@@ -407,6 +414,9 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
     scene.output.frames = o.frames.unwrap_or(DEFAULT_MESH_FRAMES);
     if let Some(fps) = o.fps {
         scene.output.fps = fps;
+    }
+    if let Some(device) = o.device {
+        scene.solver.device = device;
     }
     scene.world.floor = Some(f64::NAN); // "automatic": resolved against the mesh in `prepare`
     scene.body.push(BodySection {
@@ -597,6 +607,7 @@ pub fn bake(
         if let Some(text) = budget::large_output_note(&prepared, &loaded.scene, &output) {
             note(&text);
         }
+        note(&prepared.device.describe());
         for text in budget::small_body_notes(&prepared) {
             note(&text);
         }
@@ -622,6 +633,7 @@ pub fn bake(
             frames,
             events: prepared.event_report(),
             seconds,
+            device: prepared.device.name.clone(),
         },
         outputs: files.into_iter().map(|f| f.path).collect(),
         export_meshes: prepared

@@ -12,6 +12,8 @@ pub struct Report {
     /// declaration order, then procedure order); empty without `[[event]]`.
     pub events: Vec<serde_json::Value>,
     pub seconds: Seconds,
+    /// Where the solver ran: "cpu", or the GPU adapter's name (see `[solver] device`).
+    pub device: String,
 }
 
 #[derive(Debug, Clone, Default, Serialize)]

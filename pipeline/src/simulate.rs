@@ -56,6 +56,8 @@ pub struct Prepared {
     /// The scene's events, motion features and attachments (none without `[[event]]` or
     /// `[[attach]]`).
     pub events: Option<crate::events::EventDriver>,
+    /// Where the solver runs (see [`crate::device`]).
+    pub device: crate::device::Placement,
 }
 
 fn import_all(
@@ -440,6 +442,7 @@ pub fn prepare(
             None => PipelineError::Usage(message),
         },
     )?;
+    let device = crate::device::place(scene, &mut world, events.is_some())?;
     Ok(Prepared {
         world,
         bodies,
@@ -447,6 +450,7 @@ pub fn prepare(
         frame,
         floor,
         events,
+        device,
     })
 }
 

@@ -60,6 +60,7 @@ fn bake<'py>(
         fps,
         cells: None,
         material: None,
+        device: None,
     };
     let loaded = if scene.is_instance_of::<PyDict>() {
         scene_of_dict(py, scene, base_dir, &overrides)?

@@ -82,4 +82,7 @@ pub enum SimulationError {
     /// A force field failed (a plug-in's exception, a wrong number of forces).
     #[error("{0}")]
     Field(String),
+    /// The device solver failed (see [`crate::solver::device`]).
+    #[error("the GPU solver failed: {0}")]
+    Device(String),
 }

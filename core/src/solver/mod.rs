@@ -14,6 +14,7 @@ pub mod constraints;
 mod contact;
 pub mod contact_log;
 pub mod deformation_damping;
+pub mod device;
 pub mod diagnostics;
 pub mod fields;
 mod forces;

@@ -193,6 +193,12 @@ pub struct BodyContact {
 
 impl BodyContact {
     /// Whether any pair can touch (two bodies with surfaces, or a collider).
+    /// Whether a body can touch another body or a static collider (a lone body's mesh
+    /// touches nothing here).
+    pub(crate) fn touches_others(&self) -> bool {
+        !self.colliders.is_empty() || self.meshes.len() > 1
+    }
+
     pub fn any(&self) -> bool {
         !self.colliders.is_empty() || !self.meshes.is_empty()
     }

@@ -174,6 +174,8 @@ pub struct World {
     /// manipulators' work since (see [`FrameDiagnostics::energy_gain`]), J.
     energy_budget: Option<f64>,
     prepared: Option<Prepared>,
+    /// A device that steps the frames instead of the CPU (see [`super::device`]).
+    pub(crate) device: super::device::DeviceSlot,
     /// Buffers of the step's constraint, rigid-body and volume passes, reused.
     scratch: StepScratch,
 }
@@ -375,6 +377,7 @@ impl World {
             xpbd: None,
             energy_budget: None,
             prepared: None,
+            device: Default::default(),
             scratch: StepScratch::default(),
         }
     }
@@ -712,8 +715,10 @@ impl World {
         parallel_max(v.len(), |i| v[i].norm())
     }
 
-    /// One step of `dt` seconds.
+    /// One step of `dt` seconds, on the CPU (an attached device is let go: its state would
+    /// be behind).
     pub fn step(&mut self, dt: f64) -> StepStats {
+        self.device = Default::default();
         let mut acc = FrameAccumulator::default();
         on_worker(self.parallel_size(), || self.step_accumulate(dt, &mut acc))
     }
@@ -794,11 +799,15 @@ impl World {
         let (kinetic, elastic, gravity) = self.energies();
         super::fields::refresh(self, false);
         self.contact_log.begin_frame();
-        on_worker(self.parallel_size(), || {
-            for _ in 0..choice.substeps {
-                self.step_accumulate(choice.dt, &mut acc);
-            }
-        });
+        if self.on_device() {
+            acc.max_depth = self.advance_on_device(choice.substeps, choice.dt)?;
+        } else {
+            on_worker(self.parallel_size(), || {
+                for _ in 0..choice.substeps {
+                    self.step_accumulate(choice.dt, &mut acc);
+                }
+            });
+        }
         self.contact_log.end_frame();
         if cancelled() {
             return Err(SimulationError::Cancelled);

@@ -105,6 +105,17 @@ pub(crate) struct CellSet {
     pub wave_speed: f64,
 }
 
+/// Display-surface points grouped by their cell (see [`CellSet::point_groups`]).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PointGroups {
+    /// Point indices, group after group.
+    pub order: Vec<u32>,
+    /// Ranges of `order`: the points of one cell.
+    pub groups: Vec<Range<u32>>,
+    /// Ranges of `groups`: the groups of one colour (the last may be the points in no cell).
+    pub colours: Vec<Range<u32>>,
+}
+
 /// Colours past this one go to one serial colour.
 const MAX_COLOURS: usize = 64;
 
@@ -251,6 +262,85 @@ impl CellSet {
         }
         let widest = self.colours.iter().map(|r| r.len()).max().unwrap_or(0);
         self.out = vec![[V3::zeros(); 8]; widest];
+    }
+
+    /// The display-surface points (their cells' node ids, joint followers already resolved)
+    /// grouped by the cell they lie in, in the cells' colour order: what the contact pass
+    /// visits in order, and what a device runs a colour of at a time (groups of one colour
+    /// share no node). Points in no cell of this set come last, as one group.
+    pub(crate) fn point_groups(&self, point_nodes: impl Iterator<Item = [u32; 8]>) -> PointGroups {
+        let cell_of: rustc_hash::FxHashMap<[u32; 8], u32> = self
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(c, nodes)| (*nodes, c as u32))
+            .collect();
+        let mut keyed: Vec<(u32, u32)> = point_nodes
+            .enumerate()
+            .map(|(i, nodes)| (cell_of.get(&nodes).copied().unwrap_or(u32::MAX), i as u32))
+            .collect();
+        keyed.sort_unstable();
+        let mut groups = PointGroups {
+            order: keyed.iter().map(|&(_, i)| i).collect(),
+            ..PointGroups::default()
+        };
+        let mut colour_of_group = Vec::new();
+        let mut start = 0;
+        while start < keyed.len() {
+            let cell = keyed[start].0;
+            let end = start + keyed[start..].partition_point(|k| k.0 == cell);
+            groups.groups.push(start as u32..end as u32);
+            let colour = self
+                .colours
+                .iter()
+                .position(|r| r.contains(&(cell as usize)));
+            colour_of_group.push(colour.unwrap_or(self.colours.len()));
+            start = end;
+        }
+        let mut first = 0;
+        while first < colour_of_group.len() {
+            let c = colour_of_group[first];
+            let end = first + colour_of_group[first..].partition_point(|&k| k == c);
+            groups.colours.push(first as u32..end as u32);
+            first = end;
+        }
+        groups
+    }
+
+    /// Whether some cells share nodes within their colour (more than [`MAX_COLOURS`] were
+    /// needed) or are not lattice cubes: what a device solver does not run.
+    pub(crate) fn all_coloured_cubes(&self) -> bool {
+        self.serial_colour.is_none() && self.shape.iter().all(|s| matches!(s, Shape::Cube { .. }))
+    }
+
+    /// The cells as a device takes them (see [`crate::solver::device`]): colour ranges and,
+    /// per cell, its nodes, `1/h`, compliances (the volume's `None` where λ is 0), axis
+    /// roots and corner parity. Only for [`Self::all_coloured_cubes`].
+    pub(crate) fn device_cells(&self) -> (Vec<crate::solver::device::DeviceCell>, Vec<Range<u32>>) {
+        let cells = (0..self.nodes.len())
+            .map(|j| {
+                let (inv_h, odd) = match self.shape[j] {
+                    Shape::Cube { inv_h, odd } => (inv_h, odd),
+                    Shape::Tet { .. } => (0.0, false),
+                };
+                crate::solver::device::DeviceCell {
+                    nodes: self.nodes[j],
+                    inv_h,
+                    odd,
+                    volume_compliance: self.hydro_alpha[j]
+                        .is_finite()
+                        .then_some(self.hydro_alpha[j]),
+                    shear_compliance: self.dev_alpha[j],
+                    axis_root: self.axis_root[j],
+                }
+            })
+            .collect();
+        let colours = self
+            .colours
+            .iter()
+            .map(|r| r.start as u32..r.end as u32)
+            .collect();
+        (cells, colours)
     }
 
     /// One Gauss–Seidel sweep over every cell's constraints (colour by colour), moving the

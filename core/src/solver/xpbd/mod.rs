@@ -35,7 +35,7 @@ use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
-use cells::{CellInput, CellSet};
+use cells::{CellInput, CellSet, PointGroups};
 use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -71,6 +71,9 @@ const RESTITUTION_CONTACT_TOLERANCE: f64 = 1e-4;
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Model {
     cells: CellSet,
+    /// The display-surface points by the cell they lie in, in colour order: the order the
+    /// contact pass visits them (what a device solver can run a colour at a time).
+    points: PointGroups,
     /// Springs solved as distance constraints (bodies without cells).
     springs: Vec<usize>,
     /// Shortest rest edge of any cell or constraint spring, m.
@@ -161,6 +164,8 @@ impl Model {
             }
         }
         cells.finish(n);
+        let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
+        let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
         let s = &world.springs;
         let shortest_spring = springs
             .iter()
@@ -173,6 +178,7 @@ impl Model {
         };
         Model {
             cells,
+            points,
             springs,
             shortest_edge,
             previous: vec![V3::zeros(); n],
@@ -190,6 +196,34 @@ impl Model {
             logged_once: false,
             restitution: Restitution::build(world),
         }
+    }
+
+    /// The cells and display-surface points as a device takes them (see
+    /// [`crate::solver::device`]), or what of this model a device does not run.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn device_parts(
+        &self,
+    ) -> Result<
+        (
+            Vec<crate::solver::device::DeviceCell>,
+            Vec<std::ops::Range<u32>>,
+            PointGroups,
+        ),
+        String,
+    > {
+        if !self.springs.is_empty() {
+            return Err("bodies made of springs only (cages without cells)".into());
+        }
+        if !self.cells.all_coloured_cubes() {
+            return Err("cells that are not lattice cubes (cages, sheared lattices)".into());
+        }
+        let (cells, colours) = self.cells.device_cells();
+        Ok((cells, colours, self.points.clone()))
+    }
+
+    /// Whether the restitution of stiff bodies acts at substeps of `dt` seconds.
+    pub(crate) fn restitution_acts_at(&self, dt: f64) -> bool {
+        self.restitution.acts_at(dt)
     }
 
     /// Elastic energy of the cells and constraint springs now, J.
@@ -608,7 +642,8 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     let statics = &mut world.body_contact.colliders[..];
     let behind = world.settings.layer.thickness_m;
     model.logged_once = true;
-    for i in 0..surface.len() {
+    for &i in &model.points.order {
+        let i = i as usize;
         model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
         if colliders {
             model.collider_touch[i] = None;

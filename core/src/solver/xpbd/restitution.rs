@@ -108,6 +108,12 @@ impl Restitution {
         }
     }
 
+    /// Whether any body gets some restitution at substeps of `dt` seconds (or shorter ones
+    /// never do more).
+    pub(crate) fn acts_at(&self, dt: f64) -> bool {
+        self.bodies.iter().any(|b| Self::weight(b, dt) > 0.0)
+    }
+
     /// The share of the restitution a body gets at substep `dt`.
     fn weight(body: &StiffBody, dt: f64) -> f64 {
         let crossings = body.crossing / dt;

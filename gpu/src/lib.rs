@@ -1,0 +1,618 @@
+//! springbake's GPU backend: the small-step XPBD substep of `springbake_core::solver::xpbd` as
+//! wgpu compute shaders (`xpbd.wgsl`: WGSL, so Vulkan, Metal and DX12 alike; Mesa's lavapipe
+//! runs it on a machine without a GPU). A [`GpuSolver`] is built from a world's
+//! [`DeviceModel`] and attached to the world, which then hands it each output frame's
+//! substeps (see `springbake_core::solver::device`). The lattice's fixed colouring becomes
+//! one dispatch per colour; per-body sums are fixed-tree reductions over fixed chunks; the
+//! state is read back once per output frame.
+
+mod layout;
+
+use bytemuck::cast_slice as bytes;
+use layout::{Body, Packed, Params, MAX_PLANES, SIXTEEN_FLOATS, WORKGROUP};
+use springbake_core::nalgebra::Vector3;
+use springbake_core::solver::device::{DeviceModel, DeviceSolver};
+use wgpu::util::DeviceExt;
+
+/// Why there is no GPU solver.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found (wgpu found no Vulkan, Metal or DX12 device; on Linux without a \
+         GPU, Mesa's software driver lavapipe provides one: apt-get install mesa-vulkan-drivers)"
+    )]
+    NoAdapter,
+    #[error("the GPU adapter {adapter} cannot run the solver: {reason}")]
+    Unsuitable { adapter: String, reason: String },
+    #[error("the world has more than {MAX_PLANES} floor and wall planes")]
+    TooManyPlanes,
+}
+
+/// What [`probe`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdapterSummary {
+    /// Name and backend, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)".
+    pub name: String,
+    /// A software rasteriser on the CPU (lavapipe, WARP, SwiftShader).
+    pub software: bool,
+}
+
+fn request_adapter() -> Result<(wgpu::Instance, wgpu::Adapter), GpuError> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let options = wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    };
+    let adapter =
+        pollster::block_on(instance.request_adapter(&options)).map_err(|_| GpuError::NoAdapter)?;
+    Ok((instance, adapter))
+}
+
+fn summary(adapter: &wgpu::Adapter) -> AdapterSummary {
+    let info = adapter.get_info();
+    AdapterSummary {
+        name: format!("{} ({:?})", info.name, info.backend),
+        software: info.device_type == wgpu::DeviceType::Cpu,
+    }
+}
+
+/// The adapter a [`GpuSolver`] would run on, if there is one.
+pub fn probe() -> Result<AdapterSummary, GpuError> {
+    request_adapter().map(|(_, adapter)| summary(&adapter))
+}
+
+/// The shader's entry points.
+struct Pipelines {
+    predict: wgpu::ComputePipeline,
+    solve_cells: wgpu::ComputePipeline,
+    torque_sums: wgpu::ComputePipeline,
+    torque_finish: wgpu::ComputePipeline,
+    torque_apply: wgpu::ComputePipeline,
+    contact_nodes: wgpu::ComputePipeline,
+    contact_points: wgpu::ComputePipeline,
+    barrier_cells: wgpu::ComputePipeline,
+    velocities: wgpu::ComputePipeline,
+    damp_sums: wgpu::ComputePipeline,
+    damp_finish: wgpu::ComputePipeline,
+    damp_apply: wgpu::ComputePipeline,
+}
+
+/// The XPBD substep on a GPU (module docs).
+pub struct GpuSolver {
+    adapter: AdapterSummary,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    pipelines: Pipelines,
+    state: wgpu::BindGroup,
+    spans: wgpu::BindGroup,
+    /// Byte offset of each span in the span buffer: the cells' colours, then the points'.
+    span_offsets: Vec<u32>,
+    /// Cells or point groups in each span.
+    span_sizes: Vec<u32>,
+    cell_colours: usize,
+    params_buffer: wgpu::Buffer,
+    params: Params,
+    x: wgpu::Buffer,
+    prev: wgpu::Buffer,
+    v: wgpu::Buffer,
+    bodies_buffer: wgpu::Buffer,
+    bodies: Vec<Body>,
+    chunk_count: u32,
+    depth: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    /// Each node's position at the frame's start (the shader's `base`).
+    base: wgpu::Buffer,
+    has_points: bool,
+    /// Errors wgpu reported outside a call's result (its default is to panic).
+    errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
+}
+
+const STORAGE_BINDINGS: [(u32, bool); 16] = [
+    (1, false),
+    (2, false),
+    (3, false),
+    (4, false),
+    (5, true),
+    (6, true),
+    (7, false),
+    (8, true),
+    (9, true),
+    (10, true),
+    (11, true),
+    (12, true),
+    (13, false),
+    (14, false),
+    (15, false),
+    (16, true),
+];
+
+fn storage(device: &wgpu::Device, label: &str, contents: &[u8]) -> wgpu::Buffer {
+    // A binding may not be empty.
+    let zero = [0u8; 16];
+    let contents = if contents.is_empty() {
+        &zero[..]
+    } else {
+        contents
+    };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+fn groups(count: u32) -> u32 {
+    count.div_ceil(WORKGROUP)
+}
+
+impl GpuSolver {
+    /// Upload `model` to the best adapter there is.
+    pub fn new(model: &DeviceModel) -> Result<GpuSolver, GpuError> {
+        if model.planes.len() > MAX_PLANES {
+            return Err(GpuError::TooManyPlanes);
+        }
+        let (_instance, adapter) = request_adapter()?;
+        let summary = summary(&adapter);
+        let unsuitable = |reason: String| GpuError::Unsuitable {
+            adapter: summary.name.clone(),
+            reason,
+        };
+        let limits = adapter.limits();
+        if limits.max_storage_buffers_per_shader_stage < STORAGE_BINDINGS.len() as u32 {
+            return Err(unsuitable(format!(
+                "it binds {} storage buffers per stage, the solver needs {}",
+                limits.max_storage_buffers_per_shader_stage,
+                STORAGE_BINDINGS.len()
+            )));
+        }
+        let node_count = model.position.len() as u32;
+        let most = [
+            node_count,
+            model.cells.len() as u32,
+            model.point_groups.len() as u32,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        if groups(most) > limits.max_compute_workgroups_per_dimension {
+            return Err(unsuitable(format!(
+                "{most} nodes or cells need more workgroups than its {} per dispatch",
+                limits.max_compute_workgroups_per_dimension
+            )));
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("springbake xpbd"),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| unsuitable(e.to_string()))?;
+        let errors = std::sync::Arc::new(std::sync::Mutex::new(None));
+        let sink = errors.clone();
+        device.on_uncaptured_error(std::sync::Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut slot) = sink.lock() {
+                slot.get_or_insert_with(|| e.to_string());
+            }
+        }));
+        let packed = layout::pack(model);
+        let spans: Vec<(u32, u32)> = model
+            .cell_colours
+            .iter()
+            .chain(&model.point_colours)
+            .map(|r| (r.start, r.end))
+            .collect();
+        let align = limits.min_uniform_buffer_offset_alignment.max(8);
+        let mut span_bytes = vec![0u8; align as usize * spans.len().max(1)];
+        for (k, (start, end)) in spans.iter().enumerate() {
+            let at = k * align as usize;
+            span_bytes[at..at + 4].copy_from_slice(&start.to_le_bytes());
+            span_bytes[at + 4..at + 8].copy_from_slice(&end.to_le_bytes());
+        }
+        let span_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("spans"),
+            contents: &span_bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut params = Params {
+            gravity: [
+                model.gravity[0] as f32,
+                model.gravity[1] as f32,
+                model.gravity[2] as f32,
+                0.0,
+            ],
+            dt: 0.0,
+            inv_dt: 0.0,
+            inv_dt2: 0.0,
+            friction: model.friction as f32,
+            node_count,
+            plane_count: model.planes.len() as u32,
+            body_count: packed.bodies.len() as u32,
+            group_offset: model.point_order.len() as u32,
+            planes: [[0.0; 4]; MAX_PLANES],
+        };
+        for (k, (n, offset)) in model.planes.iter().enumerate() {
+            params.planes[k] = [n[0] as f32, n[1] as f32, n[2] as f32, *offset as f32];
+        }
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let buffers = Buffers::upload(&device, &packed);
+        let (state_layout, span_layout) = bind_group_layouts(&device);
+        let state = buffers.bind_group(&device, &state_layout, &params_buffer);
+        let spans_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("span"),
+            layout: &span_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &span_buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(8),
+                }),
+            }],
+        });
+        let pipelines = build_pipelines(&device, &state_layout, &span_layout);
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: 3 * 16 * u64::from(node_count.max(1)) + 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        if let Some(error) = errors.lock().ok().and_then(|mut e| e.take()) {
+            return Err(unsuitable(error));
+        }
+        Ok(GpuSolver {
+            errors,
+            adapter: summary,
+            device,
+            queue,
+            pipelines,
+            state,
+            spans: spans_group,
+            span_offsets: (0..spans.len() as u32).map(|k| k * align).collect(),
+            span_sizes: spans.iter().map(|(start, end)| end - start).collect(),
+            cell_colours: model.cell_colours.len(),
+            params_buffer,
+            params,
+            x: buffers.x,
+            prev: buffers.prev,
+            v: buffers.v,
+            bodies_buffer: buffers.bodies,
+            bodies: packed.bodies,
+            chunk_count: packed.chunks.len() as u32,
+            depth: buffers.depth,
+            staging,
+            base: buffers.base,
+            has_points: !model.point_order.is_empty(),
+        })
+    }
+
+    /// The first error the device reported (wgpu's validation, lost device, out of memory).
+    fn failure(&self) -> Result<(), String> {
+        match self.errors.lock().map(|mut e| e.take()) {
+            Ok(Some(error)) => Err(error),
+            _ => Ok(()),
+        }
+    }
+
+    /// The adapter this solver runs on.
+    pub fn summary(&self) -> &AdapterSummary {
+        &self.adapter
+    }
+
+    /// Record one substep's dispatches (the CPU's stages in order).
+    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>) {
+        let p = &self.pipelines;
+        let nodes = groups(self.params.node_count);
+        let bodies = groups(self.params.body_count);
+        let run = |pass: &mut wgpu::ComputePass<'_>, pipeline: &wgpu::ComputePipeline, n: u32| {
+            if n > 0 {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(n, 1, 1);
+            }
+        };
+        let spans = |pass: &mut wgpu::ComputePass<'_>,
+                     pipeline: &wgpu::ComputePipeline,
+                     k: usize,
+                     count: u32| {
+            if count > 0 {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(1, &self.spans, &[self.span_offsets[k]]);
+                pass.dispatch_workgroups(groups(count), 1, 1);
+            }
+        };
+        run(pass, &p.predict, nodes);
+        for (k, count) in self.cell_counts() {
+            spans(pass, &p.solve_cells, k, count);
+        }
+        run(pass, &p.torque_sums, self.chunk_count);
+        run(pass, &p.torque_finish, bodies);
+        run(pass, &p.torque_apply, nodes);
+        if self.params.plane_count > 0 {
+            run(pass, &p.contact_nodes, nodes);
+            if self.has_points {
+                for (k, count) in self.point_counts() {
+                    spans(pass, &p.contact_points, k, count);
+                }
+            }
+            for (k, count) in self.cell_counts() {
+                spans(pass, &p.barrier_cells, k, count);
+            }
+        }
+        run(pass, &p.velocities, nodes);
+        run(pass, &p.damp_sums, self.chunk_count);
+        run(pass, &p.damp_finish, bodies);
+        run(pass, &p.damp_apply, nodes);
+    }
+
+    /// (span index, cell count) of each cells' colour.
+    fn cell_counts(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        (0..self.cell_colours).map(|k| (k, self.span_sizes[k]))
+    }
+
+    /// (span index, group count) of each points' colour.
+    fn point_counts(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        (self.cell_colours..self.span_sizes.len()).map(|k| (k, self.span_sizes[k]))
+    }
+}
+
+impl DeviceSolver for GpuSolver {
+    fn adapter(&self) -> &str {
+        &self.adapter.name
+    }
+
+    fn advance(
+        &mut self,
+        substeps: u32,
+        dt: f64,
+        position: &mut [Vector3<f64>],
+        velocity: &mut [Vector3<f64>],
+    ) -> Result<f64, String> {
+        if position.len() != self.params.node_count as usize {
+            return Err("the world's node count changed".into());
+        }
+        let f4 = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        let base: Vec<[f32; 4]> = position.iter().map(f4).collect();
+        let vel: Vec<[f32; 4]> = velocity.iter().map(f4).collect();
+        self.queue.write_buffer(&self.base, 0, bytes(&base));
+        self.queue.write_buffer(&self.v, 0, bytes(&vel));
+        self.params.dt = dt as f32;
+        self.params.inv_dt = (1.0 / dt) as f32;
+        self.params.inv_dt2 = (1.0 / (dt * dt)) as f32;
+        self.queue
+            .write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
+        layout::references(&mut self.bodies, position);
+        self.queue
+            .write_buffer(&self.bodies_buffer, 0, bytemuck::cast_slice(&self.bodies));
+        self.queue.write_buffer(&self.depth, 0, &[0u8; 4]);
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        encoder.clear_buffer(&self.x, 0, None);
+        encoder.clear_buffer(&self.prev, 0, None);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("substeps"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &self.state, &[]);
+            pass.set_bind_group(1, &self.spans, &[0]);
+            for _ in 0..substeps {
+                self.record_substep(&mut pass);
+            }
+        }
+        let n = u64::from(self.params.node_count);
+        encoder.copy_buffer_to_buffer(&self.prev, 0, &self.staging, 0, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.x, 0, &self.staging, 16 * n, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.v, 0, &self.staging, 32 * n, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.depth, 0, &self.staging, 48 * n, 4);
+        self.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        self.staging
+            .map_async(wgpu::MapMode::Read, .., move |r| drop(sender.send(r)));
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .map_err(|e| e.to_string())?;
+        receiver
+            .recv()
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())?;
+        let depth = {
+            let view = self
+                .staging
+                .get_mapped_range(..)
+                .map_err(|e| e.to_string())?;
+            let floats: &[[f32; 4]] = bytemuck::cast_slice(&view[..48 * n as usize]);
+            let (travel, rest) = floats.split_at(n as usize);
+            let (step, v) = rest.split_at(n as usize);
+            let wide =
+                |p: &[f32; 4]| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+            for ((x, a), b) in position.iter_mut().zip(travel).zip(step) {
+                *x += wide(a) + wide(b);
+            }
+            for (x, d) in velocity.iter_mut().zip(v) {
+                *x = wide(d);
+            }
+            let at = 48 * n as usize;
+            let bits = [view[at], view[at + 1], view[at + 2], view[at + 3]];
+            f64::from(f32::from_bits(u32::from_le_bytes(bits)))
+        };
+        self.staging.unmap();
+        self.failure()?;
+        Ok(depth)
+    }
+}
+
+struct Buffers {
+    x: wgpu::Buffer,
+    prev: wgpu::Buffer,
+    predicted: wgpu::Buffer,
+    v: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    pins: wgpu::Buffer,
+    moved: wgpu::Buffer,
+    cells: wgpu::Buffer,
+    points: wgpu::Buffer,
+    index: wgpu::Buffer,
+    bodies: wgpu::Buffer,
+    chunks: wgpu::Buffer,
+    sums: wgpu::Buffer,
+    body_out: wgpu::Buffer,
+    depth: wgpu::Buffer,
+    base: wgpu::Buffer,
+}
+
+impl Buffers {
+    fn upload(device: &wgpu::Device, p: &Packed) -> Buffers {
+        let zeros = |n: usize| vec![0u8; n];
+        Buffers {
+            x: storage(device, "x", &zeros(16 * p.x.len())),
+            prev: storage(device, "prev", &zeros(16 * p.x.len())),
+            predicted: storage(device, "predicted", &zeros(16 * p.x.len())),
+            v: storage(device, "v", bytes(&p.v)),
+            nodes: storage(device, "nodes", bytes(&p.nodes)),
+            pins: storage(device, "pins", bytes(&p.pins)),
+            moved: storage(device, "moved", &zeros(4 * p.x.len())),
+            cells: storage(device, "cells", bytes(&p.cells)),
+            points: storage(device, "points", bytes(&p.points)),
+            index: storage(device, "index", bytes(&p.index)),
+            bodies: storage(device, "bodies", bytes(&p.bodies)),
+            chunks: storage(device, "chunks", bytes(&p.chunks)),
+            sums: storage(
+                device,
+                "sums",
+                &zeros(SIXTEEN_FLOATS as usize * p.chunks.len()),
+            ),
+            body_out: storage(
+                device,
+                "body_out",
+                &zeros(SIXTEEN_FLOATS as usize * p.bodies.len()),
+            ),
+            depth: storage(device, "depth", &zeros(4)),
+            base: storage(device, "base", bytes(&p.x)),
+        }
+    }
+
+    fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        let order = [
+            params,
+            &self.x,
+            &self.prev,
+            &self.predicted,
+            &self.v,
+            &self.nodes,
+            &self.pins,
+            &self.moved,
+            &self.cells,
+            &self.points,
+            &self.index,
+            &self.bodies,
+            &self.chunks,
+            &self.sums,
+            &self.body_out,
+            &self.depth,
+            &self.base,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = order
+            .iter()
+            .enumerate()
+            .map(|(k, buffer)| wgpu::BindGroupEntry {
+                binding: k as u32,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("state"),
+            layout,
+            entries: &entries,
+        })
+    }
+}
+
+fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
+    let entry = |binding: u32, ty: wgpu::BindingType| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty,
+        count: None,
+    };
+    let uniform = |dynamic: bool| wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Uniform,
+        has_dynamic_offset: dynamic,
+        min_binding_size: None,
+    };
+    let mut entries = vec![entry(0, uniform(false))];
+    entries.extend(STORAGE_BINDINGS.iter().map(|&(binding, read_only)| {
+        entry(
+            binding,
+            wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+        )
+    }));
+    let state = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("state"),
+        entries: &entries,
+    });
+    let span = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("span"),
+        entries: &[entry(0, uniform(true))],
+    });
+    (state, span)
+}
+
+fn build_pipelines(
+    device: &wgpu::Device,
+    state: &wgpu::BindGroupLayout,
+    span: &wgpu::BindGroupLayout,
+) -> Pipelines {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("xpbd.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("xpbd.wgsl").into()),
+    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("xpbd"),
+        bind_group_layouts: &[Some(state), Some(span)],
+        immediate_size: 0,
+    });
+    let make = |entry: &str| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    };
+    Pipelines {
+        predict: make("predict"),
+        solve_cells: make("solve_cells"),
+        torque_sums: make("torque_sums"),
+        torque_finish: make("torque_finish"),
+        torque_apply: make("torque_apply"),
+        contact_nodes: make("contact_nodes"),
+        contact_points: make("contact_points"),
+        barrier_cells: make("barrier_cells"),
+        velocities: make("velocities"),
+        damp_sums: make("damp_sums"),
+        damp_finish: make("damp_finish"),
+        damp_apply: make("damp_apply"),
+    }
+}

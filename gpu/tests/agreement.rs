@@ -1,0 +1,116 @@
+//! The GPU solver against the CPU's XPBD on the same worlds (issue 24): positions within 1e-4
+//! of the body's size over a 48-frame drop onto the floor, no inverted cells. Runs on whatever
+//! adapter wgpu finds: Mesa's lavapipe on CI (scripts/setup-test-env.sh installs it).
+#![allow(clippy::unwrap_used)]
+
+use springbake_core::lattice::{
+    fit_lattice, surface_samples, FitSettings, Resolution, SpringLayout,
+};
+use springbake_core::material::Material;
+use springbake_core::nalgebra::{Rotation3, Vector3};
+use springbake_core::shapes::box_mesh;
+use springbake_core::solver::{Integrator, Plane, World, WorldSettings};
+use springbake_gpu::GpuSolver;
+
+const FRAME: f64 = 1.0 / 24.0;
+
+/// A world holding a box of edge `size` (turned by `tilt`, its lowest point `height` above a
+/// floor at y = 0) as the product sets up a mesh: `cells` along its side, display-surface
+/// contact sampled at half a cell, friction 0.4.
+fn box_world(size: f64, tilt: Rotation3<f64>, height: f64, cells: u32, preset: &str) -> World {
+    let half = 0.5 * size;
+    let (mut points, triangles) = box_mesh([-half; 3], [half; 3]);
+    for p in &mut points {
+        *p = tilt * *p;
+    }
+    let low = points.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    for p in &mut points {
+        p.y += height - low;
+    }
+    let lattice = fit_lattice(
+        &points,
+        &triangles,
+        &FitSettings {
+            resolution: Resolution::CellsAlongLongest(cells),
+            layout: SpringLayout::Both,
+            ..FitSettings::default()
+        },
+    )
+    .unwrap();
+    let material = Material::preset(preset).unwrap();
+    let mut w = World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(lattice.cell_size, &material, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    });
+    let h = w.add_lattice_body("box", &lattice, &material, Vector3::zeros());
+    let (samples, areas) = surface_samples(&points, &triangles, 0.5 * lattice.cell_size);
+    w.add_contact_surface(h, &lattice, &samples, &areas);
+    w
+}
+
+fn on_gpu(mut w: World) -> World {
+    let model = w
+        .device_model()
+        .expect("a lone lattice body runs on a device");
+    let solver = GpuSolver::new(&model).expect("a GPU adapter (lavapipe on CI)");
+    w.attach_device(Box::new(solver));
+    w
+}
+
+/// Largest distance between the two worlds' nodes over `frames` frames, and the most
+/// inverted cells of either.
+fn compare(mut cpu: World, mut gpu: World, frames: usize) -> (f64, usize, Vec<f64>) {
+    let mut worst = 0.0f64;
+    let mut inverted = 0;
+    let mut heights = Vec::new();
+    for f in 1..=frames {
+        let a = cpu.advance_frame(FRAME, f, &|| false).unwrap();
+        let b = gpu.advance_frame(FRAME, f, &|| false).unwrap();
+        inverted = inverted.max(a.inverted_cells).max(b.inverted_cells);
+        let apart = cpu
+            .nodes
+            .position
+            .iter()
+            .zip(&gpu.nodes.position)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max);
+        worst = worst.max(apart);
+        let centre =
+            |w: &World| w.nodes.position.iter().map(|p| p.y).sum::<f64>() / w.nodes.len() as f64;
+        heights.push(centre(&gpu));
+        eprintln!(
+            "frame {f}: centre y cpu {:.5} gpu {:.5}, apart {apart:.2e} m",
+            centre(&cpu),
+            centre(&gpu)
+        );
+    }
+    (worst, inverted, heights)
+}
+
+#[test]
+fn a_rubber_box_dropped_on_the_floor_moves_as_on_the_cpu() {
+    let make = || box_world(0.5, Rotation3::identity(), 0.5, 8, "rubber");
+    let (worst, inverted, heights) = compare(make(), on_gpu(make()), 48);
+    assert_eq!(inverted, 0);
+    // It fell, landed and bounced.
+    let lowest = heights.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(lowest < 0.26, "lowest centre {lowest}");
+    assert!(worst <= 1e-4 * 0.5, "positions {worst} m apart");
+}
+
+#[test]
+fn a_tilted_box_lands_on_its_corner_and_tumbles_as_on_the_cpu() {
+    let tilt = Rotation3::from_euler_angles(0.5, 0.0, 0.5);
+    let make = || box_world(0.4, tilt, 0.3, 6, "soft_rubber");
+    let (worst, inverted, _) = compare(make(), on_gpu(make()), 48);
+    assert_eq!(inverted, 0);
+    assert!(
+        worst <= 1e-4 * 0.4 * 3f64.sqrt(),
+        "positions {worst} m apart"
+    );
+}
