@@ -3,8 +3,9 @@
 #   .venv/         Python venv with bpy (Blender as a module), usd-core, alembic3d, ray, maturin
 #                  and springbake's own Python package (python/, scripts/build-python-package.sh)
 #   node_modules/  the Khronos gltf-validator, three.js and playwright-core (the VAT player test)
-#   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test and
-#   Chromium for the VAT player test
+#   and, from the distribution's packages, Xvfb, xdotool and xwd for the live-window test,
+#   Chromium for the VAT player test, and Mesa's software Vulkan driver (lavapipe) with the
+#   Vulkan loader where no Vulkan driver is installed (the GPU solver's tests run on it)
 # Idempotent: a second run only checks. Needs network access to PyPI and npm.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -47,6 +48,15 @@ if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command 
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null 2>&1 \
     || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null; }
+fi
+if ! ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1 \
+  || ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
+  echo "setup: installing mesa-vulkan-drivers and libvulkan1 (lavapipe: the GPU solver's tests without a GPU)"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null 2>&1 \
+    || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null; }
 fi
 if ! command -v chromium >/dev/null; then
   echo "setup: installing chromium (the VAT player test's headless browser)"

@@ -1,0 +1,140 @@
+//! `[solver] device` through the CLI (issue 24): `--device gpu` bakes on the GPU solver (Mesa's
+//! lavapipe on CI) what the CPU bakes, and says where it ran in the log and the report; a scene
+//! the GPU solver does not run, or a machine without an adapter, is a clear error (exit 2) for
+//! `gpu` and a note and the CPU for `auto`.
+#![allow(clippy::unwrap_used)]
+
+use springbake_testkit::{assert_gltf_valid, workspace_root};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn bake(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_springbake"));
+    command.arg("bake").args(args).args(["--progress", "quiet"]);
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    command.output().unwrap()
+}
+
+fn report(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn the_gpu_bakes_the_cube_drop_as_the_cpu_does_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = workspace_root().join("examples/cube.obj");
+    let mut reports = Vec::new();
+    for device in ["gpu", "cpu"] {
+        let glb = dir.path().join(format!("{device}.glb"));
+        let json = dir.path().join(format!("{device}.json"));
+        let out = bake(
+            &[
+                cube.to_str().unwrap(),
+                "--cells",
+                "6",
+                "--frames",
+                "24",
+                "--device",
+                device,
+                "-o",
+                glb.to_str().unwrap(),
+                "--report",
+                json.to_str().unwrap(),
+            ],
+            &[],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{device}: {err}");
+        assert!(err.contains("solver on "), "{err}");
+        assert_gltf_valid(&glb);
+        reports.push(report(&json));
+    }
+    let (gpu, cpu) = (&reports[0], &reports[1]);
+    assert_ne!(gpu["device"], "cpu", "{}", gpu["device"]);
+    assert_eq!(cpu["device"], "cpu");
+    let mass = gpu["bodies"][0]["mass_kg"].as_f64().unwrap();
+    for (a, b) in gpu["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(cpu["frames"].as_array().unwrap())
+    {
+        assert_eq!(a["inverted_cells"], 0);
+        // Gravity energy m g h: the centres of mass within 0.1 mm.
+        let (ga, gb) = (
+            a["gravity_energy"].as_f64().unwrap(),
+            b["gravity_energy"].as_f64().unwrap(),
+        );
+        assert!(
+            (ga - gb).abs() <= mass * 9.81 * 1e-4,
+            "frame {}: {ga} against {gb} J",
+            a["frame"]
+        );
+    }
+}
+
+#[test]
+fn what_the_gpu_cannot_run_is_an_error_for_gpu_and_a_note_for_auto() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = workspace_root().join("examples/drop_and_hit.toml");
+    let glb = dir.path().join("hit.glb");
+    let out = bake(
+        &[
+            scene.to_str().unwrap(),
+            "--frames",
+            "2",
+            "--device",
+            "gpu",
+            "-o",
+            glb.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("device = \"gpu\"") && err.contains("manipulators"),
+        "{err}"
+    );
+    assert!(!glb.exists());
+
+    // No adapter at all (wgpu told to look for Metal only, which Linux has not).
+    let cube = workspace_root().join("examples/cube.obj");
+    let args = |device: &'static str, cells: &'static str| {
+        [
+            cube.to_str().unwrap().to_string(),
+            "--cells".into(),
+            cells.into(),
+            "--frames".into(),
+            "2".into(),
+            "--device".into(),
+            device.into(),
+            "-o".into(),
+            glb.to_str().unwrap().to_string(),
+        ]
+    };
+    let no_adapter = [("WGPU_BACKEND", "metal")];
+    let a = args("gpu", "4");
+    let out = bake(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &no_adapter,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no GPU adapter found") && err.contains("mesa-vulkan-drivers"),
+        "{err}"
+    );
+    // `auto` on a lattice large enough for a GPU falls back to the CPU and says why.
+    let a = args("auto", "32");
+    let out = bake(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &no_adapter,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("solver on cpu: no GPU adapter found"), "{err}");
+    assert!(glb.exists());
+}
