@@ -78,13 +78,22 @@ fn the_gpu_bakes_the_cube_drop_as_the_cpu_does_and_says_so() {
 #[test]
 fn what_the_gpu_cannot_run_is_an_error_for_gpu_and_a_note_for_auto() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = workspace_root().join("examples/drop_and_hit.toml");
+    std::fs::copy(
+        workspace_root().join("examples/cube.obj"),
+        dir.path().join("cube.obj"),
+    )
+    .unwrap();
+    let scene = dir.path().join("held.toml");
+    std::fs::write(
+        &scene,
+        "[output]\npath = \"held.glb\"\nframes = 2\n[world]\nfloor = 0.0\n\
+         [[body]]\nsource = \"cube.obj\"\ncells = 4\npreserve_volume = true\n",
+    )
+    .unwrap();
     let glb = dir.path().join("hit.glb");
     let out = bake(
         &[
             scene.to_str().unwrap(),
-            "--frames",
-            "2",
             "--device",
             "gpu",
             "-o",
@@ -95,7 +104,7 @@ fn what_the_gpu_cannot_run_is_an_error_for_gpu_and_a_note_for_auto() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("device = \"gpu\"") && err.contains("manipulators"),
+        err.contains("device = \"gpu\"") && err.contains("volume preservation"),
         "{err}"
     );
     assert!(!glb.exists());

@@ -24,8 +24,44 @@ pub struct Params {
     pub plane_count: u32,
     pub body_count: u32,
     pub group_offset: u32,
+    pub capsule_count: u32,
+    pub point_count: u32,
+    pub push_chunks: u32,
+    pub pad: u32,
     pub planes: [[f32; 4]; MAX_PLANES],
 }
+
+/// A capsule at a substep's end and start (the shader's `Capsule`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct Capsule {
+    pub centre: [f32; 4],
+    pub axis: [f32; 4],
+    pub before_centre: [f32; 4],
+    pub before_axis: [f32; 4],
+}
+
+impl Capsule {
+    pub fn pack(
+        (now, before): &(
+            springbake_core::solver::Capsule,
+            springbake_core::solver::Capsule,
+        ),
+    ) -> Capsule {
+        let v = |v: &Vector3<f64>, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+        Capsule {
+            centre: v(&now.centre, now.radius),
+            axis: v(&now.axis, now.length),
+            before_centre: v(&before.centre, now.friction),
+            before_axis: v(&before.axis, 0.0),
+        }
+    }
+}
+
+/// Slots of the shader's `push` per chunk (its `PUSH_CHUNK`).
+pub const PUSH_CHUNK: u32 = 1024;
+/// Most substeps in one output frame (the per-substep uniforms and totals are sized for it).
+pub const MAX_SUBSTEPS: u32 = 4096;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]

@@ -9,9 +9,12 @@
 mod layout;
 
 use bytemuck::cast_slice as bytes;
-use layout::{Body, Packed, Params, MAX_PLANES, SIXTEEN_FLOATS, WORKGROUP};
+use layout::{
+    Body, Packed, Params, MAX_PLANES, MAX_SUBSTEPS, PUSH_CHUNK, SIXTEEN_FLOATS, WORKGROUP,
+};
 use springbake_core::nalgebra::Vector3;
-use springbake_core::solver::device::{DeviceModel, DeviceSolver};
+use springbake_core::solver::device::{DeviceFrame, DeviceModel, DeviceSolver, DeviceTotals};
+use springbake_core::solver::Capsule;
 use wgpu::util::DeviceExt;
 
 /// Why there is no GPU solver.
@@ -76,6 +79,8 @@ struct Pipelines {
     damp_sums: wgpu::ComputePipeline,
     damp_finish: wgpu::ComputePipeline,
     damp_apply: wgpu::ComputePipeline,
+    push_sums: wgpu::ComputePipeline,
+    push_finish: wgpu::ComputePipeline,
 }
 
 /// The XPBD substep on a GPU (module docs).
@@ -86,6 +91,11 @@ pub struct GpuSolver {
     pipelines: Pipelines,
     state: wgpu::BindGroup,
     spans: wgpu::BindGroup,
+    /// Each substep's index, at `step_align` bytes apart.
+    steps: wgpu::BindGroup,
+    step_align: u32,
+    /// Slots of `push` for the nodes and points.
+    push_slots: u32,
     /// Byte offset of each span in the span buffer: the cells' colours, then the points'.
     span_offsets: Vec<u32>,
     /// Cells or point groups in each span.
@@ -93,22 +103,17 @@ pub struct GpuSolver {
     cell_colours: usize,
     params_buffer: wgpu::Buffer,
     params: Params,
-    x: wgpu::Buffer,
-    prev: wgpu::Buffer,
-    v: wgpu::Buffer,
-    bodies_buffer: wgpu::Buffer,
+    buffers: Buffers,
+    state_layout: wgpu::BindGroupLayout,
     bodies: Vec<Body>,
     chunk_count: u32,
-    depth: wgpu::Buffer,
     staging: wgpu::Buffer,
-    /// Each node's position at the frame's start (the shader's `base`).
-    base: wgpu::Buffer,
     has_points: bool,
     /// Errors wgpu reported outside a call's result (its default is to panic).
     errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
-const STORAGE_BINDINGS: [(u32, bool); 16] = [
+const STORAGE_BINDINGS: [(u32, bool); 18] = [
     (1, false),
     (2, false),
     (3, false),
@@ -125,6 +130,8 @@ const STORAGE_BINDINGS: [(u32, bool); 16] = [
     (14, false),
     (15, false),
     (16, true),
+    (17, true),
+    (18, false),
 ];
 
 fn storage(device: &wgpu::Device, label: &str, contents: &[u8]) -> wgpu::Buffer {
@@ -204,17 +211,6 @@ impl GpuSolver {
             .map(|r| (r.start, r.end))
             .collect();
         let align = limits.min_uniform_buffer_offset_alignment.max(8);
-        let mut span_bytes = vec![0u8; align as usize * spans.len().max(1)];
-        for (k, (start, end)) in spans.iter().enumerate() {
-            let at = k * align as usize;
-            span_bytes[at..at + 4].copy_from_slice(&start.to_le_bytes());
-            span_bytes[at + 4..at + 8].copy_from_slice(&end.to_le_bytes());
-        }
-        let span_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("spans"),
-            contents: &span_bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let mut params = Params {
             gravity: [
                 model.gravity[0] as f32,
@@ -230,6 +226,10 @@ impl GpuSolver {
             plane_count: model.planes.len() as u32,
             body_count: packed.bodies.len() as u32,
             group_offset: model.point_order.len() as u32,
+            capsule_count: 0,
+            point_count: model.point_nodes.len() as u32,
+            push_chunks: 0,
+            pad: 0,
             planes: [[0.0; 4]; MAX_PLANES],
         };
         for (k, (n, offset)) in model.planes.iter().enumerate() {
@@ -240,25 +240,19 @@ impl GpuSolver {
             contents: bytemuck::bytes_of(&params),
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
-        let buffers = Buffers::upload(&device, &packed);
+        params.push_chunks = (node_count + model.point_nodes.len() as u32).div_ceil(PUSH_CHUNK);
+        let buffers = Buffers::upload(&device, &packed, params.push_chunks);
         let (state_layout, span_layout) = bind_group_layouts(&device);
         let state = buffers.bind_group(&device, &state_layout, &params_buffer);
-        let spans_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("span"),
-            layout: &span_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &span_buffer,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(8),
-                }),
-            }],
-        });
+        let span_values: Vec<[u32; 2]> = spans.iter().map(|&(a, b)| [a, b]).collect();
+        let spans_group = offset_table(&device, &span_layout, "spans", &span_values, align);
+        let step_values: Vec<[u32; 2]> = (0..MAX_SUBSTEPS).map(|k| [k, 0]).collect();
+        let steps = offset_table(&device, &span_layout, "substeps", &step_values, align);
         let pipelines = build_pipelines(&device, &state_layout, &span_layout);
+        let push_slots = node_count + model.point_nodes.len() as u32;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: 3 * 16 * u64::from(node_count.max(1)) + 16,
+            size: 3 * 16 * u64::from(node_count.max(1)) + 16 + 16 * u64::from(MAX_SUBSTEPS),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -273,20 +267,20 @@ impl GpuSolver {
             pipelines,
             state,
             spans: spans_group,
+            steps,
+            step_align: align,
+            push_slots,
+
             span_offsets: (0..spans.len() as u32).map(|k| k * align).collect(),
             span_sizes: spans.iter().map(|(start, end)| end - start).collect(),
             cell_colours: model.cell_colours.len(),
             params_buffer,
             params,
-            x: buffers.x,
-            prev: buffers.prev,
-            v: buffers.v,
-            bodies_buffer: buffers.bodies,
+            buffers,
+            state_layout,
             bodies: packed.bodies,
             chunk_count: packed.chunks.len() as u32,
-            depth: buffers.depth,
             staging,
-            base: buffers.base,
             has_points: !model.point_order.is_empty(),
         })
     }
@@ -305,8 +299,9 @@ impl GpuSolver {
     }
 
     /// Record one substep's dispatches (the CPU's stages in order).
-    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>) {
+    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>, k: u32) {
         let p = &self.pipelines;
+        pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
         let nodes = groups(self.params.node_count);
         let bodies = groups(self.params.body_count);
         let run = |pass: &mut wgpu::ComputePass<'_>, pipeline: &wgpu::ComputePipeline, n: u32| {
@@ -332,12 +327,17 @@ impl GpuSolver {
         run(pass, &p.torque_sums, self.chunk_count);
         run(pass, &p.torque_finish, bodies);
         run(pass, &p.torque_apply, nodes);
-        if self.params.plane_count > 0 {
+        if self.params.plane_count > 0 || self.params.capsule_count > 0 {
             run(pass, &p.contact_nodes, nodes);
             if self.has_points {
                 for (k, count) in self.point_counts() {
                     spans(pass, &p.contact_points, k, count);
                 }
+            }
+            if self.params.capsule_count > 0 {
+                run(pass, &p.push_sums, self.params.push_chunks);
+                pass.set_pipeline(&p.push_finish);
+                pass.dispatch_workgroups(1, 1, 1);
             }
             for (k, count) in self.cell_counts() {
                 spans(pass, &p.barrier_cells, k, count);
@@ -347,6 +347,29 @@ impl GpuSolver {
         run(pass, &p.damp_sums, self.chunk_count);
         run(pass, &p.damp_finish, bodies);
         run(pass, &p.damp_apply, nodes);
+    }
+
+    /// Write the frame's capsules (growing their buffer when a frame needs more) and their
+    /// count per substep into the parameters.
+    fn upload_capsules(&mut self, capsules: &[(Capsule, Capsule)], count: usize) {
+        self.params.capsule_count = count as u32;
+        if count == 0 {
+            return;
+        }
+        let packed: Vec<layout::Capsule> = capsules.iter().map(layout::Capsule::pack).collect();
+        let bytes_needed = std::mem::size_of_val(packed.as_slice()) as u64;
+        if bytes_needed > self.buffers.capsules.size() {
+            self.buffers.capsules = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("capsules"),
+                size: bytes_needed.next_power_of_two(),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let b = &self.buffers;
+            self.state = b.bind_group(&self.device, &self.state_layout, &self.params_buffer);
+        }
+        self.queue
+            .write_buffer(&self.buffers.capsules, 0, bytes(&packed));
     }
 
     /// (span index, cell count) of each cells' colour.
@@ -365,21 +388,29 @@ impl DeviceSolver for GpuSolver {
         &self.adapter.name
     }
 
-    fn advance(
-        &mut self,
-        substeps: u32,
-        dt: f64,
-        position: &mut [Vector3<f64>],
-        velocity: &mut [Vector3<f64>],
-    ) -> Result<f64, String> {
+    fn advance(&mut self, frame: DeviceFrame<'_>) -> Result<DeviceTotals, String> {
+        let DeviceFrame {
+            substeps,
+            dt,
+            position,
+            velocity,
+            capsules,
+            capsule_count,
+        } = frame;
         if position.len() != self.params.node_count as usize {
             return Err("the world's node count changed".into());
         }
+        if substeps > MAX_SUBSTEPS {
+            return Err(format!(
+                "{substeps} substeps in one frame; the GPU solver takes at most {MAX_SUBSTEPS}"
+            ));
+        }
+        self.upload_capsules(capsules, capsule_count);
         let f4 = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         let base: Vec<[f32; 4]> = position.iter().map(f4).collect();
         let vel: Vec<[f32; 4]> = velocity.iter().map(f4).collect();
-        self.queue.write_buffer(&self.base, 0, bytes(&base));
-        self.queue.write_buffer(&self.v, 0, bytes(&vel));
+        self.queue.write_buffer(&self.buffers.base, 0, bytes(&base));
+        self.queue.write_buffer(&self.buffers.v, 0, bytes(&vel));
         self.params.dt = dt as f32;
         self.params.inv_dt = (1.0 / dt) as f32;
         self.params.inv_dt2 = (1.0 / (dt * dt)) as f32;
@@ -387,15 +418,15 @@ impl DeviceSolver for GpuSolver {
             .write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
         layout::references(&mut self.bodies, position);
         self.queue
-            .write_buffer(&self.bodies_buffer, 0, bytemuck::cast_slice(&self.bodies));
-        self.queue.write_buffer(&self.depth, 0, &[0u8; 4]);
+            .write_buffer(&self.buffers.bodies, 0, bytemuck::cast_slice(&self.bodies));
+        self.queue.write_buffer(&self.buffers.depth, 0, &[0u8; 4]);
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        encoder.clear_buffer(&self.x, 0, None);
-        encoder.clear_buffer(&self.prev, 0, None);
+        encoder.clear_buffer(&self.buffers.x, 0, None);
+        encoder.clear_buffer(&self.buffers.prev, 0, None);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("substeps"),
@@ -403,15 +434,28 @@ impl DeviceSolver for GpuSolver {
             });
             pass.set_bind_group(0, &self.state, &[]);
             pass.set_bind_group(1, &self.spans, &[0]);
-            for _ in 0..substeps {
-                self.record_substep(&mut pass);
+            pass.set_bind_group(2, &self.steps, &[0]);
+            for k in 0..substeps {
+                self.record_substep(&mut pass, k);
             }
         }
         let n = u64::from(self.params.node_count);
-        encoder.copy_buffer_to_buffer(&self.prev, 0, &self.staging, 0, 16 * n);
-        encoder.copy_buffer_to_buffer(&self.x, 0, &self.staging, 16 * n, 16 * n);
-        encoder.copy_buffer_to_buffer(&self.v, 0, &self.staging, 32 * n, 16 * n);
-        encoder.copy_buffer_to_buffer(&self.depth, 0, &self.staging, 48 * n, 4);
+        encoder.copy_buffer_to_buffer(&self.buffers.prev, 0, &self.staging, 0, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.buffers.x, 0, &self.staging, 16 * n, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.buffers.v, 0, &self.staging, 32 * n, 16 * n);
+        encoder.copy_buffer_to_buffer(&self.buffers.depth, 0, &self.staging, 48 * n, 4);
+        let totals_at = 16 * u64::from(self.push_slots + self.params.push_chunks);
+        let totals_bytes = 16 * u64::from(substeps);
+        if self.params.capsule_count > 0 && totals_bytes > 0 {
+            let to = 48 * n + 16;
+            encoder.copy_buffer_to_buffer(
+                &self.buffers.push,
+                totals_at,
+                &self.staging,
+                to,
+                totals_bytes,
+            );
+        }
         self.queue.submit([encoder.finish()]);
         let (sender, receiver) = std::sync::mpsc::channel();
         self.staging
@@ -444,7 +488,19 @@ impl DeviceSolver for GpuSolver {
             }
             let at = 48 * n as usize;
             let bits = [view[at], view[at + 1], view[at + 2], view[at + 3]];
-            f64::from(f32::from_bits(u32::from_le_bytes(bits)))
+            let mut totals = DeviceTotals {
+                max_depth: f64::from(f32::from_bits(u32::from_le_bytes(bits))),
+                ..DeviceTotals::default()
+            };
+            if self.params.capsule_count > 0 {
+                let sums: &[[f32; 4]] =
+                    bytemuck::cast_slice(&view[at + 16..at + 16 + 16 * substeps as usize]);
+                for p in sums {
+                    totals.capsule_force += wide(p);
+                    totals.capsule_work += f64::from(p[3]);
+                }
+            }
+            totals
         };
         self.staging.unmap();
         self.failure()?;
@@ -469,10 +525,13 @@ struct Buffers {
     body_out: wgpu::Buffer,
     depth: wgpu::Buffer,
     base: wgpu::Buffer,
+    capsules: wgpu::Buffer,
+    push: wgpu::Buffer,
 }
 
 impl Buffers {
-    fn upload(device: &wgpu::Device, p: &Packed) -> Buffers {
+    fn upload(device: &wgpu::Device, p: &Packed, push_chunks: u32) -> Buffers {
+        let push_slots = p.x.len() + p.points.len() + push_chunks as usize + MAX_SUBSTEPS as usize;
         let zeros = |n: usize| vec![0u8; n];
         Buffers {
             x: storage(device, "x", &zeros(16 * p.x.len())),
@@ -499,6 +558,8 @@ impl Buffers {
             ),
             depth: storage(device, "depth", &zeros(4)),
             base: storage(device, "base", bytes(&p.x)),
+            capsules: storage(device, "capsules", &zeros(64)),
+            push: storage(device, "push", &zeros(16 * push_slots)),
         }
     }
 
@@ -526,6 +587,8 @@ impl Buffers {
             &self.body_out,
             &self.depth,
             &self.base,
+            &self.capsules,
+            &self.push,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = order
             .iter()
@@ -577,6 +640,39 @@ fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Bi
     (state, span)
 }
 
+/// A uniform buffer of `values`, each at its own `align`-byte offset, and a bind group of
+/// `layout` that binds one of them at a dynamic offset.
+fn offset_table(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    values: &[[u32; 2]],
+    align: u32,
+) -> wgpu::BindGroup {
+    let mut bytes = vec![0u8; align as usize * values.len().max(1)];
+    for (k, v) in values.iter().enumerate() {
+        let at = k * align as usize;
+        bytes[at..at + 8].copy_from_slice(bytemuck::bytes_of(v));
+    }
+    let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &bytes,
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &buffer,
+                offset: 0,
+                size: wgpu::BufferSize::new(8),
+            }),
+        }],
+    })
+}
+
 fn build_pipelines(
     device: &wgpu::Device,
     state: &wgpu::BindGroupLayout,
@@ -588,7 +684,7 @@ fn build_pipelines(
     });
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("xpbd"),
-        bind_group_layouts: &[Some(state), Some(span)],
+        bind_group_layouts: &[Some(state), Some(span), Some(span)],
         immediate_size: 0,
     });
     let make = |entry: &str| {
@@ -614,5 +710,7 @@ fn build_pipelines(
         damp_sums: make("damp_sums"),
         damp_finish: make("damp_finish"),
         damp_apply: make("damp_apply"),
+        push_sums: make("push_sums"),
+        push_finish: make("push_finish"),
     }
 }

@@ -21,7 +21,25 @@ struct Params {
     plane_count: u32,
     body_count: u32,
     group_offset: u32,
+    capsule_count: u32,
+    point_count: u32,
+    // Chunks of PUSH_CHUNK slots over `push`'s node and point slots.
+    push_chunks: u32,
+    pad: u32,
     planes: array<vec4<f32>, 8>,
+}
+
+// A capsule manipulator at a substep's end (`centre.w` its radius, `axis.w` its length) and at
+// its start (`before_centre.w` its friction).
+struct Capsule {
+    centre: vec4<f32>,
+    axis: vec4<f32>,
+    before_centre: vec4<f32>,
+    before_axis: vec4<f32>,
+}
+
+struct Step {
+    index: u32,
 }
 
 struct Span {
@@ -111,7 +129,13 @@ struct BodyOut {
 @group(0) @binding(14) var<storage, read_write> body_out: array<BodyOut>;
 @group(0) @binding(15) var<storage, read_write> depth: array<atomic<u32>>;
 @group(0) @binding(16) var<storage, read> base: array<vec4<f32>>;
+// Per substep, `capsule_count` capsules.
+@group(0) @binding(17) var<storage, read> capsules: array<Capsule>;
+// The capsules' push per node, then per point (force xyz, N; work w, J); then the chunks'
+// sums; then each substep's total.
+@group(0) @binding(18) var<storage, read_write> push: array<vec4<f32>>;
 @group(1) @binding(0) var<uniform> span: Span;
+@group(2) @binding(0) var<uniform> substep: Step;
 
 const COLLAPSE_J: f32 = 0.2;
 const WG: u32 = 64u;
@@ -443,6 +467,9 @@ fn torque_apply(@builtin(global_invocation_id) id: vec3<u32>) {
 struct Contact {
     correction: vec3<f32>,
     depth: f32,
+    // The capsules' part of the correction, and its dot with their surfaces' motion.
+    from_capsules: vec3<f32>,
+    capsule_work: f32,
 }
 
 fn friction_part(slip: vec3<f32>, limit: f32) -> vec3<f32> {
@@ -457,7 +484,7 @@ fn friction_part(slip: vec3<f32>, limit: f32) -> vec3<f32> {
 // start (`step` its move in the substep): xpbd::contact::Surfaces::resolve with the moves
 // taken from the start, and each plane's depth from the point's distance to it.
 fn resolve(at: vec3<f32>, travel: vec3<f32>, step0: vec3<f32>) -> Contact {
-    var out = Contact(vec3<f32>(0.0), 0.0);
+    var out = Contact(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
     var step = step0;
     for (var k = 0u; k < params.plane_count; k++) {
         let plane = params.planes[k];
@@ -472,7 +499,56 @@ fn resolve(at: vec3<f32>, travel: vec3<f32>, step0: vec3<f32>) -> Contact {
             step = fixed;
         }
     }
+    if params.capsule_count == 0u {
+        return out;
+    }
+    // The capsules (xpbd::contact::Surfaces::resolve), on whole coordinates.
+    let start = at + travel;
+    for (var k = 0u; k < params.capsule_count; k++) {
+        let cap = capsules[step_index() * params.capsule_count + k];
+        let centre = cap.centre.xyz;
+        let axis = cap.axis.xyz;
+        let radius = cap.centre.w;
+        let half = 0.5 * cap.axis.w;
+        let p = start + step;
+        let s = clamp(dot(p - centre, axis), -half, half);
+        let axis_point = centre + axis * s;
+        let offset = p - axis_point;
+        let dist = length(offset);
+        let depth = radius - dist;
+        if depth > 0.0 {
+            var n = fallback_normal(axis);
+            if dist > 1e-12 {
+                n = offset / dist;
+            }
+            let moved_to = step + n * depth;
+            let surface_then = cap.before_centre.xyz + cap.before_axis.xyz * s + n * radius;
+            let surface_now = axis_point + n * radius;
+            let travel_of_surface = surface_now - surface_then;
+            let relative = moved_to - travel_of_surface;
+            let slip = relative - n * dot(relative, n);
+            let fixed = moved_to - friction_part(slip, cap.before_centre.w * depth);
+            out.correction += fixed - step;
+            out.from_capsules += fixed - step;
+            out.capsule_work += dot(fixed - step, travel_of_surface);
+            out.depth = max(out.depth, depth);
+            step = fixed;
+        }
+    }
     return out;
+}
+
+fn step_index() -> u32 {
+    return substep.index;
+}
+
+// Manipulator::fallback_normal: a direction perpendicular to the axis.
+fn fallback_normal(axis: vec3<f32>) -> vec3<f32> {
+    var trial = vec3<f32>(0.0, 1.0, 0.0);
+    if abs(axis.x) < 0.9 {
+        trial = vec3<f32>(1.0, 0.0, 0.0);
+    }
+    return normalize(cross(axis, trial));
 }
 
 fn note_depth(d: f32) {
@@ -488,6 +564,7 @@ fn contact_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     moved[i] = 0u;
+    push[i] = vec4<f32>(0.0);
     let node = nodes[i];
     if (node.flags & 2u) == 0u || node.inv_mass <= 0.0 {
         return;
@@ -497,6 +574,8 @@ fn contact_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
         x[i] = vec4<f32>(x[i].xyz + c.correction, 0.0);
         moved[i] = 1u;
         note_depth(c.depth);
+        let k = node.mass * params.inv_dt2;
+        push[i] = vec4<f32>(c.from_capsules * k, c.capsule_work * k);
     }
 }
 
@@ -506,6 +585,19 @@ fn beyond_reach(n: u32, reach: f32) -> bool {
         let gap = ((dot(plane.xyz, base[n].xyz) - plane.w) + dot(plane.xyz, prev[n].xyz))
             + dot(plane.xyz, x[n].xyz);
         if gap <= reach {
+            return false;
+        }
+    }
+    let p = base[n].xyz + prev[n].xyz + x[n].xyz;
+    for (var k = 0u; k < params.capsule_count; k++) {
+        let cap = capsules[step_index() * params.capsule_count + k];
+        let h = cap.axis.xyz * (0.5 * cap.axis.w);
+        let a = cap.centre.xyz - h;
+        let b = cap.centre.xyz + h;
+        let grow = vec3<f32>(cap.centre.w + reach);
+        let lo = min(a, b) - grow;
+        let hi = max(a, b) + grow;
+        if all(p >= lo) && all(p <= hi) {
             return false;
         }
     }
@@ -521,6 +613,8 @@ fn contact_points(@builtin(global_invocation_id) id: vec3<u32>) {
     let first = index[params.group_offset + 2u * g];
     let last = index[params.group_offset + 2u * g + 1u];
     for (var o = first; o < last; o++) {
+        let slot = params.node_count + index[o];
+        push[slot] = vec4<f32>(0.0);
         let point = points[index[o]];
         if beyond_reach(point.nodes[0], point.reach) {
             continue;
@@ -545,6 +639,8 @@ fn contact_points(@builtin(global_invocation_id) id: vec3<u32>) {
             continue;
         }
         note_depth(c.depth);
+        let scale = params.inv_dt2 / denominator;
+        push[slot] = vec4<f32>(c.from_capsules * scale, c.capsule_work * scale);
         for (var k = 0u; k < 8u; k++) {
             let n = point.nodes[k];
             let step = c.correction * (point.weights[k] * nodes[n].inv_mass / denominator);
@@ -573,6 +669,46 @@ fn barrier_cells(@builtin(global_invocation_id) id: vec3<u32>) {
         barrier(c, cell.inv_h);
     }
     store_cell(cell);
+}
+
+// ---- The capsules' push on the bodies, summed in a fixed order ------------------------------
+
+var<workgroup> push_scratch: array<vec4<f32>, 64>;
+
+const PUSH_CHUNK: u32 = 1024u;
+
+// Chunk `wg.x` of the node and point slots into its partial sum.
+@compute @workgroup_size(64)
+fn push_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    let slots = params.node_count + params.point_count;
+    let start = wg.x * PUSH_CHUNK;
+    let end = min(start + PUSH_CHUNK, slots);
+    var own = vec4<f32>(0.0);
+    for (var i = start + lid.x; i < end; i += WG) {
+        own += push[i];
+    }
+    push_scratch[lid.x] = own;
+    workgroupBarrier();
+    for (var half = WG / 2u; half > 0u; half = half / 2u) {
+        if lid.x < half {
+            push_scratch[lid.x] += push_scratch[lid.x + half];
+        }
+        workgroupBarrier();
+    }
+    if lid.x == 0u {
+        push[slots + wg.x] = push_scratch[0];
+    }
+}
+
+// The chunks' sums in order: this substep's total.
+@compute @workgroup_size(1)
+fn push_finish() {
+    let slots = params.node_count + params.point_count;
+    var total = vec4<f32>(0.0);
+    for (var c = 0u; c < params.push_chunks; c++) {
+        total += push[slots + c];
+    }
+    push[slots + params.push_chunks + substep.index] = total;
 }
 
 // ---- Stage 5: velocities and the deformation damping ---------------------------------------

@@ -1,10 +1,11 @@
 //! The GPU solver against the CPU's XPBD on the same worlds (issue 24): positions within
-//! [`TOLERANCE`] of the body's size over a 48-frame drop onto the floor and a tumble off a
-//! corner, no inverted cells. Runs on whatever adapter wgpu finds: Mesa's lavapipe on CI
+//! [`TOLERANCE`] of the body's size over a 48-frame drop onto the floor, a tumble off a
+//! corner and a jelly block swept by the manipulator (and the same reaction), no inverted
+//! cells. Runs on whatever adapter wgpu finds: Mesa's lavapipe on CI
 //! (scripts/setup-test-env.sh installs it).
 //!
-//! The issue asks for 1e-4 of the size; f32 measures 2e-4 (the drop) and 6.6e-4 (the tumble,
-//! of the box's edge) here. Not chaos: the CPU run
+//! The issue asks for 1e-4 of the size; f32 measures 2.1e-4 (the drop), 6.6e-4 (the tumble,
+//! of the box's edge) and 1.4e-4 (the sweep) here. Not chaos: the CPU run
 //! again with every node moved 1e-7 m ends within 8e-7 m of itself. It is f32's resolution
 //! of a cell's strain (`½(f·f − 1)` of columns known to ~6e-8 relative), which every substep's
 //! projection turns into a velocity kick of a few µm/s; over 1440 substeps that walks to
@@ -18,7 +19,8 @@ use springbake_core::lattice::{
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Rotation3, Vector3};
 use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{Integrator, Plane, World, WorldSettings};
+use springbake_core::solver::manipulator::ManipulatorKey;
+use springbake_core::solver::{Integrator, ManipulatorTrack, Plane, World, WorldSettings};
 use springbake_gpu::GpuSolver;
 
 const FRAME: f64 = 1.0 / 24.0;
@@ -75,14 +77,36 @@ fn on_gpu(mut w: World) -> World {
 
 /// Largest distance between the two worlds' nodes over `frames` frames, and the most
 /// inverted cells of either.
-fn compare(mut cpu: World, mut gpu: World, frames: usize) -> (f64, usize, Vec<f64>) {
+fn compare(cpu: World, gpu: World, frames: usize) -> (f64, usize, Vec<f64>) {
+    let (worst, inverted, heights, _) = compare_with_reaction(cpu, gpu, frames);
+    (worst, inverted, heights)
+}
+
+/// [`compare`], and the largest difference of the manipulators' reported reaction, N.
+fn compare_with_reaction(
+    mut cpu: World,
+    mut gpu: World,
+    frames: usize,
+) -> (f64, usize, Vec<f64>, f64) {
     let mut worst = 0.0f64;
     let mut inverted = 0;
     let mut heights = Vec::new();
+    let mut reaction = 0.0f64;
     for f in 1..=frames {
         let a = cpu.advance_frame(FRAME, f, &|| false).unwrap();
         let b = gpu.advance_frame(FRAME, f, &|| false).unwrap();
         inverted = inverted.max(a.inverted_cells).max(b.inverted_cells);
+        for k in 0..3 {
+            let d = a.manipulator_reaction[k] - b.manipulator_reaction[k];
+            reaction = reaction.max(d.abs());
+        }
+        assert!(
+            (a.manipulator_work - b.manipulator_work).abs()
+                <= 1e-3 * a.manipulator_work.abs().max(1e-3),
+            "frame {f}: work {} against {} J",
+            a.manipulator_work,
+            b.manipulator_work
+        );
         let apart = cpu
             .nodes
             .position
@@ -94,14 +118,9 @@ fn compare(mut cpu: World, mut gpu: World, frames: usize) -> (f64, usize, Vec<f6
         let centre =
             |w: &World| w.nodes.position.iter().map(|p| p.y).sum::<f64>() / w.nodes.len() as f64;
         heights.push(centre(&gpu));
-        eprintln!(
-            "frame {f}: centre y cpu {:.5} gpu {:.5}, apart {apart:.2e} m",
-            centre(&cpu),
-            centre(&gpu)
-        );
     }
-    eprintln!("worst {worst:.2e} m apart");
-    (worst, inverted, heights)
+    eprintln!("worst {worst:.2e} m apart, reactions {reaction:.2e} N apart");
+    (worst, inverted, heights, reaction)
 }
 
 #[test]
@@ -121,8 +140,39 @@ fn a_tilted_box_lands_on_its_corner_and_tumbles_as_on_the_cpu() {
     let make = || box_world(0.4, tilt, 0.3, 6, "soft_rubber");
     let (worst, inverted, _) = compare(make(), on_gpu(make()), 48);
     assert_eq!(inverted, 0);
-    assert!(
-        worst <= 1e-4 * 0.4 * 3f64.sqrt(),
-        "positions {worst} m apart"
-    );
+    assert!(worst <= TOLERANCE * 0.4, "positions {worst} m apart");
+}
+
+/// The papers' headline scene: a soft block on the floor swept broadside by the capsule
+/// manipulator; the GPU pushes it as the CPU does and reports the same reaction.
+#[test]
+fn a_jelly_block_swept_by_the_manipulator_moves_as_on_the_cpu() {
+    let make = || {
+        let mut w = box_world(0.3, Rotation3::identity(), 0.0, 6, "jelly");
+        let key = |t: f64, x: f64| ManipulatorKey {
+            t,
+            position: Vector3::new(x, 0.12, 0.0),
+            yaw_deg: 0.0,
+        };
+        w.manipulators.push(ManipulatorTrack {
+            radius: 0.04,
+            length: 0.6,
+            friction: 0.3,
+            smooth: false,
+            keys: vec![key(0.0, -0.45), key(0.6, 0.45)],
+            up: Vector3::y(),
+        });
+        w
+    };
+    let mut cpu = make();
+    let (worst, inverted, _, reaction) = compare_with_reaction(make(), on_gpu(make()), 24);
+    assert_eq!(inverted, 0);
+    assert!(worst <= TOLERANCE * 0.3, "positions {worst} m apart");
+    assert!(reaction <= 0.05, "reactions {reaction} N apart");
+    // It was pushed: the CPU's block moved along x.
+    for f in 1..=24 {
+        cpu.advance_frame(FRAME, f, &|| false).unwrap();
+    }
+    let x = cpu.nodes.position.iter().map(|p| p.x).sum::<f64>() / cpu.nodes.len() as f64;
+    assert!(x > 0.05, "centre x {x}");
 }

@@ -6,14 +6,16 @@
 //! back, and the world computes the frame's diagnostics from them as it always does.
 //!
 //! A device runs the substep of [`super::xpbd`] stage for stage, in f32: prediction with
-//! gravity, static pins, the lattice cells colour by colour, the torque cancellation, floor and
-//! wall contact with friction for nodes and display-surface points (the points a colour of
-//! cells at a time, in the order the CPU visits them), the collapse barriers of the cells the
-//! contacts moved, velocities, and the deformation damping. What it does not run is named by
+//! gravity, static pins, the lattice cells colour by colour, the torque cancellation, contact
+//! with friction against the floor, walls and capsule manipulators for nodes and
+//! display-surface points (the points a colour of cells at a time, in the order the CPU visits
+//! them), the collapse barriers of the cells the contacts moved, velocities, and the
+//! deformation damping. What it does not run is named by
 //! [`World::device_model`]'s error, and the caller steps that world on the CPU.
 
 use super::diagnostics::SimulationError;
-use super::integrator::Integrator;
+use super::integrator::{FrameAccumulator, Integrator};
+use super::manipulator::Capsule;
 use super::World;
 use nalgebra::Vector3;
 use std::ops::Range;
@@ -81,20 +83,37 @@ pub struct DeviceModel {
     pub gravity: [f64; 3],
 }
 
+/// One output frame for a device: its substeps, the state to start from (and to leave the
+/// result in), and the capsules of every substep.
+pub struct DeviceFrame<'a> {
+    pub substeps: u32,
+    /// Seconds per substep.
+    pub dt: f64,
+    pub position: &'a mut [Vector3<f64>],
+    pub velocity: &'a mut [Vector3<f64>],
+    /// Per substep, `capsule_count` pairs (the capsule at the substep's end, and at its
+    /// start: its surface's motion gives the friction's reference), substep after substep.
+    pub capsules: &'a [(Capsule, Capsule)],
+    pub capsule_count: usize,
+}
+
+/// What a device's frame adds to the frame's diagnostics.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DeviceTotals {
+    /// Deepest penetration a contact resolved, m.
+    pub max_depth: f64,
+    /// The capsules' force on the bodies, summed over the substeps, N.
+    pub capsule_force: Vector3<f64>,
+    /// The capsules' work on the bodies, J.
+    pub capsule_work: f64,
+}
+
 /// A solver that runs a [`DeviceModel`]'s substeps elsewhere.
 pub trait DeviceSolver: Send {
     /// The adapter it runs on, for logs and reports (e.g. "llvmpipe (Vulkan, CPU)").
     fn adapter(&self) -> &str;
-    /// Run `substeps` substeps of `dt` seconds each from the nodes' `position` and
-    /// `velocity`, leave the state after them there, and return the deepest penetration a
-    /// contact resolved, m.
-    fn advance(
-        &mut self,
-        substeps: u32,
-        dt: f64,
-        position: &mut [Vector3<f64>],
-        velocity: &mut [Vector3<f64>],
-    ) -> Result<f64, String>;
+    /// Run the frame's substeps from its state and leave the state after them there.
+    fn advance(&mut self, frame: DeviceFrame<'_>) -> Result<DeviceTotals, String>;
 }
 
 /// The world's attached device, if any. A clone of a world steps on the CPU (a device's
@@ -207,8 +226,6 @@ impl World {
             Some("force fields")
         } else if self.settings.wind.is_some() {
             Some("wind")
-        } else if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
-            Some("manipulators")
         } else if self.body_contact.touches_others() {
             Some("contact between bodies or with static colliders")
         } else if self
@@ -242,27 +259,57 @@ impl World {
         self.device.solver.is_some()
     }
 
-    /// One output frame's substeps on the attached device; returns the deepest penetration.
+    /// One output frame's substeps on the attached device, its totals added to `acc`.
     pub(crate) fn advance_on_device(
         &mut self,
         substeps: u32,
         dt: f64,
-    ) -> Result<f64, SimulationError> {
+        acc: &mut FrameAccumulator,
+    ) -> Result<(), SimulationError> {
         if self.device.nodes != self.nodes.len() {
             return Err(SimulationError::Device(
                 "the world's bodies changed after the device was attached".into(),
             ));
         }
+        // The capsules of each substep, as the CPU's contact stage takes them.
+        let mut capsules = Vec::new();
+        let mut time = self.time;
+        for _ in 0..substeps {
+            capsules.extend(
+                self.manipulators
+                    .iter()
+                    .map(|m| (m.capsule_at(time + dt), m.capsule_at(time))),
+            );
+            capsules.extend(self.live_capsules.iter().map(|c| {
+                let mut before = *c;
+                before.centre -= c.velocity * dt;
+                (*c, before)
+            }));
+            time += dt;
+        }
         let Some(solver) = self.device.solver.as_mut() else {
-            return Ok(0.0);
+            return Ok(());
         };
         let nodes = &mut self.nodes;
-        let depth = solver
-            .advance(substeps, dt, &mut nodes.position, &mut nodes.velocity)
+        let totals = solver
+            .advance(DeviceFrame {
+                substeps,
+                dt,
+                position: &mut nodes.position,
+                velocity: &mut nodes.velocity,
+                capsules: &capsules,
+                capsule_count: self.manipulators.len() + self.live_capsules.len(),
+            })
             .map_err(SimulationError::Device)?;
         for _ in 0..substeps {
             self.time += dt;
         }
-        Ok(depth)
+        acc.max_depth = acc.max_depth.max(totals.max_depth);
+        acc.steps += substeps;
+        acc.manipulator_work += totals.capsule_work;
+        if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
+            acc.reaction_sum -= totals.capsule_force;
+        }
+        Ok(())
     }
 }

@@ -800,7 +800,7 @@ impl World {
         super::fields::refresh(self, false);
         self.contact_log.begin_frame();
         if self.on_device() {
-            acc.max_depth = self.advance_on_device(choice.substeps, choice.dt)?;
+            self.advance_on_device(choice.substeps, choice.dt, &mut acc)?;
         } else {
             on_worker(self.parallel_size(), || {
                 for _ in 0..choice.substeps {
