@@ -13,58 +13,17 @@
 //! travel + this substep's move, see `xpbd.wgsl`).
 #![allow(clippy::unwrap_used)]
 
-use springbake_core::lattice::{
-    fit_lattice, surface_samples, FitSettings, Resolution, SpringLayout,
-};
-use springbake_core::material::Material;
+mod support;
+
 use springbake_core::nalgebra::{Rotation3, Vector3};
-use springbake_core::shapes::box_mesh;
 use springbake_core::solver::manipulator::ManipulatorKey;
-use springbake_core::solver::{Integrator, ManipulatorTrack, Plane, World, WorldSettings};
+use springbake_core::solver::{ManipulatorTrack, World};
 use springbake_gpu::GpuSolver;
+use support::box_world;
 
 const FRAME: f64 = 1.0 / 24.0;
 /// Largest distance between CPU and GPU nodes, as a share of the body's size.
 const TOLERANCE: f64 = 1e-3;
-
-/// A world holding a box of edge `size` (turned by `tilt`, its lowest point `height` above a
-/// floor at y = 0) as the product sets up a mesh: `cells` along its side, display-surface
-/// contact sampled at half a cell, friction 0.4.
-fn box_world(size: f64, tilt: Rotation3<f64>, height: f64, cells: u32, preset: &str) -> World {
-    let half = 0.5 * size;
-    let (mut points, triangles) = box_mesh([-half; 3], [half; 3]);
-    for p in &mut points {
-        *p = tilt * *p;
-    }
-    let low = points.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
-    for p in &mut points {
-        p.y += height - low;
-    }
-    let lattice = fit_lattice(
-        &points,
-        &triangles,
-        &FitSettings {
-            resolution: Resolution::CellsAlongLongest(cells),
-            layout: SpringLayout::Both,
-            ..FitSettings::default()
-        },
-    )
-    .unwrap();
-    let material = Material::preset(preset).unwrap();
-    let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &material, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
-    let h = w.add_lattice_body("box", &lattice, &material, Vector3::zeros());
-    let (samples, areas) = surface_samples(&points, &triangles, 0.5 * lattice.cell_size);
-    w.add_contact_surface(h, &lattice, &samples, &areas);
-    w
-}
 
 fn on_gpu(mut w: World) -> World {
     let model = w
