@@ -8,14 +8,17 @@
 
 mod layout;
 
+pub use layout::MAX_SUBSTEPS;
+
 use bytemuck::cast_slice as bytes;
-use layout::{
-    Body, Packed, Params, MAX_PLANES, MAX_SUBSTEPS, PUSH_CHUNK, SIXTEEN_FLOATS, WORKGROUP,
-};
+use layout::{Body, Packed, Params, MAX_PLANES, PUSH_CHUNK, SIXTEEN_FLOATS, WORKGROUP};
 use springbake_core::nalgebra::Vector3;
 use springbake_core::solver::device::{DeviceFrame, DeviceModel, DeviceSolver, DeviceTotals};
 use springbake_core::solver::Capsule;
 use wgpu::util::DeviceExt;
+
+/// Substeps recorded in one compute pass.
+const SUBSTEPS_PER_PASS: u32 = 64;
 
 /// Why there is no GPU solver.
 #[derive(Debug, thiserror::Error)]
@@ -400,11 +403,41 @@ impl DeviceSolver for GpuSolver {
         if position.len() != self.params.node_count as usize {
             return Err("the world's node count changed".into());
         }
-        if substeps > MAX_SUBSTEPS {
-            return Err(format!(
-                "{substeps} substeps in one frame; the GPU solver takes at most {MAX_SUBSTEPS}"
-            ));
+        // At most MAX_SUBSTEPS at a time (the viewer's live mode may ask for thousands).
+        let mut totals = DeviceTotals::default();
+        let mut done = 0;
+        while done < substeps {
+            let batch = (substeps - done).min(MAX_SUBSTEPS);
+            let from = done as usize * capsule_count;
+            let to = (done + batch) as usize * capsule_count;
+            let part = self.advance_batch(
+                batch,
+                dt,
+                position,
+                velocity,
+                &capsules[from..to],
+                capsule_count,
+            )?;
+            totals.max_depth = totals.max_depth.max(part.max_depth);
+            totals.capsule_force += part.capsule_force;
+            totals.capsule_work += part.capsule_work;
+            done += batch;
         }
+        Ok(totals)
+    }
+}
+
+impl GpuSolver {
+    /// Up to [`MAX_SUBSTEPS`] substeps in one submission, read back at the end.
+    fn advance_batch(
+        &mut self,
+        substeps: u32,
+        dt: f64,
+        position: &mut [Vector3<f64>],
+        velocity: &mut [Vector3<f64>],
+        capsules: &[(Capsule, Capsule)],
+        capsule_count: usize,
+    ) -> Result<DeviceTotals, String> {
         self.upload_capsules(capsules, capsule_count);
         let f4 = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         let base: Vec<[f32; 4]> = position.iter().map(f4).collect();
@@ -427,7 +460,7 @@ impl DeviceSolver for GpuSolver {
             });
         encoder.clear_buffer(&self.buffers.x, 0, None);
         encoder.clear_buffer(&self.buffers.prev, 0, None);
-        {
+        for first in (0..substeps).step_by(SUBSTEPS_PER_PASS as usize) {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("substeps"),
                 timestamp_writes: None,
@@ -435,7 +468,7 @@ impl DeviceSolver for GpuSolver {
             pass.set_bind_group(0, &self.state, &[]);
             pass.set_bind_group(1, &self.spans, &[0]);
             pass.set_bind_group(2, &self.steps, &[0]);
-            for k in 0..substeps {
+            for k in first..(first + SUBSTEPS_PER_PASS).min(substeps) {
                 self.record_substep(&mut pass, k);
             }
         }

@@ -183,8 +183,16 @@ fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
 
 var<private> lx: array<vec3<f32>, 8>;
 var<private> lw: array<f32, 8>;
-// Each local node's base relative to the cell's first node's.
+// Each local node's base and travel relative to the cell's first node's.
 var<private> lrel: array<vec3<f32>, 8>;
+// The cell's corrections of each local node: written back on their own, so a node's move in
+// the substep is not rounded to the cell's size.
+var<private> ldx: array<vec3<f32>, 8>;
+
+fn move_node(k: u32, d: vec3<f32>) {
+    lx[k] += d;
+    ldx[k] += d;
+}
 
 fn signs(c: u32, inv_h: f32) -> vec3<f32> {
     return vec3<f32>(
@@ -223,7 +231,7 @@ fn cube_volume_step(inv_v: f32, alpha: f32) {
     }
     let dl = -value / denominator * inv_v;
     for (var k = 0u; k < 8u; k++) {
-        lx[k] += grad[k] * (lw[k] * dl);
+        move_node(k, grad[k] * (lw[k] * dl));
     }
 }
 
@@ -236,10 +244,10 @@ fn project_corner(c: u32, g: array<vec3<f32>, 3>, value: f32, alpha: f32) {
         return;
     }
     let dl = -value / denominator;
-    lx[c] += apex * (lw[c] * dl);
-    lx[nb.x] += g[0] * (lw[nb.x] * dl);
-    lx[nb.y] += g[1] * (lw[nb.y] * dl);
-    lx[nb.z] += g[2] * (lw[nb.z] * dl);
+    move_node(c, apex * (lw[c] * dl));
+    move_node(nb.x, g[0] * (lw[nb.x] * dl));
+    move_node(nb.y, g[1] * (lw[nb.y] * dl));
+    move_node(nb.z, g[2] * (lw[nb.z] * dl));
 }
 
 fn shear(c: u32, inv_h: f32, alpha: f32, r: vec3<f32>) {
@@ -294,13 +302,15 @@ fn load_cell(cell: Cell) {
         let n = cell.nodes[k];
         lrel[k] = (base[n].xyz - origin) + (prev[n].xyz - travel);
         lx[k] = lrel[k] + x[n].xyz;
+        ldx[k] = vec3<f32>(0.0);
         lw[k] = nodes[n].inv_mass;
     }
 }
 
 fn store_cell(cell: Cell) {
     for (var k = 0u; k < 8u; k++) {
-        x[cell.nodes[k]] = vec4<f32>(lx[k] - lrel[k], 0.0);
+        let n = cell.nodes[k];
+        x[n] = vec4<f32>(x[n].xyz + ldx[k], 0.0);
     }
 }
 

@@ -4,13 +4,13 @@
 //! cells. Runs on whatever adapter wgpu finds: Mesa's lavapipe on CI
 //! (scripts/setup-test-env.sh installs it).
 //!
-//! The issue asks for 1e-4 of the size; f32 measures 2.1e-4 (the drop), 6.6e-4 (the tumble,
-//! of the box's edge) and 1.4e-4 (the sweep) here. Not chaos: the CPU run
-//! again with every node moved 1e-7 m ends within 8e-7 m of itself. It is f32's resolution
-//! of a cell's strain (`½(f·f − 1)` of columns known to ~6e-8 relative), which every substep's
-//! projection turns into a velocity kick of a few µm/s; over 1440 substeps that walks to
-//! ~1e-4 m. Whole-coordinate rounding, 10× larger, is already gone (positions as frame base +
-//! travel + this substep's move, see `xpbd.wgsl`).
+//! Measured on lavapipe (the issue's bound is 1e-4 of the size): the drop 6.7e-6, the tumble
+//! 5.6e-5, the sweep 9.9e-5 (its capsule's contact is taken on whole coordinates, which f32
+//! resolves to ~3e-8 m: the sweep's bound here is twice the others'). Two things made f32
+//! this close: positions kept as frame base + travel + this substep's move (whole-coordinate
+//! rounding alone put the drop 1.4e-3 of the size off), and a cell writing back its
+//! corrections rather than its nodes' moves rounded to the cell's size (which also made a
+//! frame of thousands of substeps fall at the wrong speed).
 #![allow(clippy::unwrap_used)]
 
 mod support;
@@ -23,7 +23,7 @@ use support::box_world;
 
 const FRAME: f64 = 1.0 / 24.0;
 /// Largest distance between CPU and GPU nodes, as a share of the body's size.
-const TOLERANCE: f64 = 1e-3;
+const TOLERANCE: f64 = 1e-4;
 
 fn on_gpu(mut w: World) -> World {
     let model = w
@@ -126,12 +126,27 @@ fn a_jelly_block_swept_by_the_manipulator_moves_as_on_the_cpu() {
     let mut cpu = make();
     let (worst, inverted, _, reaction) = compare_with_reaction(make(), on_gpu(make()), 24);
     assert_eq!(inverted, 0);
-    assert!(worst <= TOLERANCE * 0.3, "positions {worst} m apart");
-    assert!(reaction <= 0.05, "reactions {reaction} N apart");
+    assert!(worst <= 2.0 * TOLERANCE * 0.3, "positions {worst} m apart");
+    assert!(reaction <= 0.01, "reactions {reaction} N apart");
     // It was pushed: the CPU's block moved along x.
     for f in 1..=24 {
         cpu.advance_frame(FRAME, f, &|| false).unwrap();
     }
     let x = cpu.nodes.position.iter().map(|p| p.x).sum::<f64>() / cpu.nodes.len() as f64;
     assert!(x > 0.05, "centre x {x}");
+}
+
+/// A frame of more substeps than one submission holds (the viewer's live mode can ask for
+/// thousands) runs in batches, as the CPU runs it.
+#[test]
+fn a_frame_of_more_substeps_than_a_batch_runs_in_batches() {
+    let make = || {
+        let mut w = box_world(0.2, Rotation3::identity(), 0.01, 2, "rubber");
+        w.settings.fixed_substeps = Some(springbake_gpu::MAX_SUBSTEPS + 100);
+        w
+    };
+    let (worst, inverted, heights) = compare(make(), on_gpu(make()), 1);
+    assert_eq!(inverted, 0);
+    assert!(heights[0] < 0.11, "it fell: centre {}", heights[0]);
+    assert!(worst <= TOLERANCE * 0.2, "positions {worst} m apart");
 }

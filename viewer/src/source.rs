@@ -40,6 +40,7 @@ impl Simulation {
     /// Import, fit and build the world for `loaded`.
     pub fn new(registry: &Registry, loaded: LoadedScene) -> Result<Simulation, ViewerError> {
         let prepared = springbake_pipeline::prepare(registry, &loaded, &mut Seconds::default())?;
+        eprintln!("springbake: note: {}", prepared.device.describe());
         let triangles = prepared
             .bodies
             .iter()

@@ -156,7 +156,7 @@ impl World {
             return Err("no solver model".into());
         };
         let (cells, cell_colours, points) = model.device_parts()?;
-        if model.restitution_acts_at(1.0 / super::xpbd::MIN_SUBSTEP_RATE) {
+        if model.restitution_may_act() {
             return Err(
                 "bodies too stiff for their size to resolve an impact in a substep \
                         (wood, steel: the CPU gives them restitution)"

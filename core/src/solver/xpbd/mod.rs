@@ -221,9 +221,17 @@ impl Model {
         Ok((cells, colours, self.points.clone()))
     }
 
-    /// Whether the restitution of stiff bodies acts at substeps of `dt` seconds.
-    pub(crate) fn restitution_acts_at(&self, dt: f64) -> bool {
-        self.restitution.acts_at(dt)
+    /// Whether the restitution of stiff bodies can act at the substeps the material's
+    /// stiffness asks for (the longest [`choose_substeps`] picks).
+    pub(crate) fn restitution_may_act(&self) -> bool {
+        let (h, speed) = (self.shortest_edge, self.cells.wave_speed);
+        let by_wave = if h > 0.0 && speed > 0.0 {
+            SUBSTEPS_PER_WAVE_CROSSING * speed / h
+        } else {
+            0.0
+        };
+        let rate = by_wave.clamp(MIN_SUBSTEP_RATE, MAX_STIFFNESS_SUBSTEP_RATE);
+        self.restitution.acts_at(1.0 / rate)
     }
 
     /// Elastic energy of the cells and constraint springs now, J.
