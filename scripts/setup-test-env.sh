@@ -49,7 +49,8 @@ if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command 
   $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null 2>&1 \
     || { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq xvfb xdotool x11-apps >/dev/null; }
 fi
-if ! ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1 \
+if { ! compgen -G '/usr/share/vulkan/icd.d/*.json' >/dev/null \
+  && ! compgen -G '/etc/vulkan/icd.d/*.json' >/dev/null; } \
   || ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
   echo "setup: installing mesa-vulkan-drivers and libvulkan1 (lavapipe: the GPU solver's tests without a GPU)"
   SUDO=""
