@@ -69,17 +69,17 @@ fn main() {
         let setup = built.elapsed().as_secs_f64();
         let (rate, per_frame, substeps) = run(gpu, frames);
         print!(
-            "{n}³ = {} nodes, {substeps} substeps/frame: GPU {:.3} G node-steps/s, {:.1} ms/frame \
+            "{n}³ = {} nodes, {substeps} substeps/frame: GPU {:.2} M node-steps/s, {:.1} ms/frame \
              (setup {setup:.2} s)",
             n * n * n,
-            rate * 1e-9,
+            rate * 1e-6,
             per_frame * 1e3
         );
         if n <= cpu_max {
             let (rate, per_frame, _) = run(make(), frames);
             print!(
-                "; CPU {:.3} G node-steps/s, {:.1} ms/frame",
-                rate * 1e-9,
+                "; CPU {:.2} M node-steps/s, {:.1} ms/frame",
+                rate * 1e-6,
                 per_frame * 1e3
             );
         }
