@@ -4,6 +4,8 @@
 //! `gpu` and a note and the CPU for `auto`.
 #![allow(clippy::unwrap_used)]
 
+mod support;
+
 use springbake_testkit::{assert_gltf_valid, workspace_root};
 use std::path::Path;
 use std::process::{Command, Output};
@@ -146,4 +148,59 @@ fn what_the_gpu_cannot_run_is_an_error_for_gpu_and_a_note_for_auto() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("solver on cpu: no GPU adapter found"), "{err}");
     assert!(glb.exists());
+}
+
+/// The viewer steps a scene through the same placement: with `[solver] device = "gpu"` its
+/// screenshot of a scene comes from the GPU solver (the log says so), and shows the cube on
+/// the floor as the CPU's does.
+#[test]
+fn the_viewer_steps_a_scene_on_the_gpu() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        workspace_root().join("examples/cube.obj"),
+        dir.path().join("cube.obj"),
+    )
+    .unwrap();
+    let mut pictures = Vec::new();
+    for device in ["gpu", "cpu"] {
+        let scene = dir.path().join(format!("{device}.toml"));
+        std::fs::write(
+            &scene,
+            format!(
+                "[output]\npath = \"out.glb\"\nframes = 24\n[world]\nfloor = 0.0\n\
+                 [solver]\ndevice = \"{device}\"\n[[body]]\nsource = \"cube.obj\"\ncells = 6\n\
+                 offset = [0.0, 0.3, 0.0]\n"
+            ),
+        )
+        .unwrap();
+        let png = dir.path().join(format!("{device}.png"));
+        let out = Command::new(env!("CARGO_BIN_EXE_springbake"))
+            .args(["view", scene.to_str().unwrap(), "--screenshot"])
+            .arg(&png)
+            .args(["--frame", "20", "--size", "160x120"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        // Any adapter will do for the GPU (lavapipe's on CI), never the CPU.
+        let on_cpu = err.contains("solver on cpu");
+        assert!(err.contains("solver on ") && on_cpu == (device == "cpu"), "{err}");
+        pictures.push(std::fs::read(&png).unwrap());
+    }
+    // The same picture: the cube at rest on the floor at frame 20, within a few pixels.
+    let (gpu, cpu) = (
+        support::decode_png(&pictures[0]),
+        support::decode_png(&pictures[1]),
+    );
+    assert_eq!((gpu.0, gpu.1), (160, 120));
+    let differing = gpu
+        .2
+        .chunks(4)
+        .zip(cpu.2.chunks(4))
+        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 24))
+        .count();
+    assert!(differing <= 160 * 120 / 100, "{differing} pixels differ");
+    // And the cube is in the picture (its orange against the grey floor).
+    let orange = gpu.2.chunks(4).filter(|p| p[0] as i32 > p[2] as i32 + 60).count();
+    assert!(orange > 160 * 120 / 50, "{orange} orange pixels");
 }
