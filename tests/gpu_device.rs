@@ -184,7 +184,10 @@ fn the_viewer_steps_a_scene_on_the_gpu() {
         assert!(out.status.success(), "{err}");
         // Any adapter will do for the GPU (lavapipe's on CI), never the CPU.
         let on_cpu = err.contains("solver on cpu");
-        assert!(err.contains("solver on ") && on_cpu == (device == "cpu"), "{err}");
+        assert!(
+            err.contains("solver on ") && on_cpu == (device == "cpu"),
+            "{err}"
+        );
         pictures.push(std::fs::read(&png).unwrap());
     }
     // The same picture: the cube at rest on the floor at frame 20, within a few pixels.
@@ -201,6 +204,10 @@ fn the_viewer_steps_a_scene_on_the_gpu() {
         .count();
     assert!(differing <= 160 * 120 / 100, "{differing} pixels differ");
     // And the cube is in the picture (its orange against the grey floor).
-    let orange = gpu.2.chunks(4).filter(|p| p[0] as i32 > p[2] as i32 + 60).count();
+    let orange = gpu
+        .2
+        .chunks(4)
+        .filter(|p| p[0] as i32 > p[2] as i32 + 60)
+        .count();
     assert!(orange > 160 * 120 / 50, "{orange} orange pixels");
 }
