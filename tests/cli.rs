@@ -573,3 +573,30 @@ fn grey_share(
     let (width, height, buf) = decode_png(&std::fs::read(shot).unwrap());
     buf.chunks(4).filter(|p| keep(p)).count() as f64 / (width * height) as f64
 }
+
+/// A mesh that starts half through the floor of a scene is named before the bake, with its
+/// depth and what to change; one that rests on it, or above it, is not.
+#[test]
+fn a_body_that_starts_through_the_floor_is_named_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    support::cube(dir.path(), "cube.obj");
+    let scene = |offset: f64| {
+        format!(
+            "[output]\npath = \"out.glb\"\nframes = 2\n[world]\nfloor = 0.0\n\
+             [[body]]\nsource = \"cube.obj\"\ncells = 4\noffset = [0.0, {offset}, 0.0]\n"
+        )
+    };
+    std::fs::write(dir.path().join("half.toml"), scene(0.0)).unwrap();
+    let o = support::springbake_in(dir.path(), &["bake", "half.toml", "--progress", "quiet"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("body \"Cube\" starts 0.250 m through the floor"),
+        "{err}"
+    );
+    std::fs::write(dir.path().join("on.toml"), scene(0.25)).unwrap();
+    let o = support::springbake_in(dir.path(), &["bake", "on.toml", "--progress", "quiet"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("through the floor"), "{err}");
+}

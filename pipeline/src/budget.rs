@@ -207,6 +207,34 @@ pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
         .collect()
 }
 
+/// A body whose display mesh starts more than half a cell through the floor or a wall is
+/// thrown out of it at the first substeps (its lattice stores the push as strain and gives
+/// it back as speed): say so, with the depth and what to change, before the bake.
+pub fn through_plane_notes(prepared: &Prepared) -> Vec<String> {
+    let planes = &prepared.world.settings.planes;
+    (0..prepared.bodies.len())
+        .filter_map(|b| {
+            let body = &prepared.bodies[b];
+            let points = prepared.vertex_positions(b);
+            let deepest = points
+                .iter()
+                .flat_map(|p| {
+                    planes
+                        .iter()
+                        .map(move |pl| pl.offset - pl.normal.dot(&p.coords))
+                })
+                .fold(0.0, f64::max);
+            (deepest > 0.5 * body.lattice.cell_size).then(|| {
+                format!(
+                    "body \"{}\" starts {:.3} m through the floor or a wall: it will be thrown \
+                     out of it; raise it (`offset` in [[body]]) or move the plane",
+                    body.name, deepest
+                )
+            })
+        })
+        .collect()
+}
+
 /// Refuses a bake whose estimated memory is over `limit` bytes.
 pub fn check_memory(
     prepared: &Prepared,

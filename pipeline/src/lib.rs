@@ -608,6 +608,9 @@ pub fn bake(
             note(&text);
         }
         note(&prepared.device.describe());
+        for text in budget::through_plane_notes(&prepared) {
+            note(&text);
+        }
         for text in budget::small_body_notes(&prepared) {
             note(&text);
         }
