@@ -327,15 +327,24 @@ pub enum DeviceSpec {
     Cpu,
 }
 
+impl DeviceSpec {
+    /// The name the scene file and `--device` use.
+    pub fn name(self) -> &'static str {
+        match self {
+            DeviceSpec::Auto => "auto",
+            DeviceSpec::Gpu => "gpu",
+            DeviceSpec::Cpu => "cpu",
+        }
+    }
+}
+
 impl std::str::FromStr for DeviceSpec {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(DeviceSpec::Auto),
-            "gpu" => Ok(DeviceSpec::Gpu),
-            "cpu" => Ok(DeviceSpec::Cpu),
-            other => Err(format!("unknown device \"{other}\": auto, gpu or cpu")),
-        }
+        [DeviceSpec::Auto, DeviceSpec::Gpu, DeviceSpec::Cpu]
+            .into_iter()
+            .find(|d| d.name() == s)
+            .ok_or_else(|| format!("unknown device \"{s}\": auto, gpu or cpu"))
     }
 }
 

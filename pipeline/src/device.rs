@@ -89,17 +89,9 @@ pub fn place(
             world.attach_device(Box::new(solver));
             Ok(Placement {
                 name,
-                reason: format!("{nodes} nodes, device = \"{}\"", spec_name(spec)),
+                reason: format!("{nodes} nodes, device = \"{}\"", spec.name()),
             })
         }
         Err(e) => refuse(e.to_string()),
-    }
-}
-
-fn spec_name(spec: DeviceSpec) -> &'static str {
-    match spec {
-        DeviceSpec::Auto => "auto",
-        DeviceSpec::Gpu => "gpu",
-        DeviceSpec::Cpu => "cpu",
     }
 }

@@ -275,16 +275,7 @@ impl World {
         let mut capsules = Vec::new();
         let mut time = self.time;
         for _ in 0..substeps {
-            capsules.extend(
-                self.manipulators
-                    .iter()
-                    .map(|m| (m.capsule_at(time + dt), m.capsule_at(time))),
-            );
-            capsules.extend(self.live_capsules.iter().map(|c| {
-                let mut before = *c;
-                before.centre -= c.velocity * dt;
-                (*c, before)
-            }));
+            super::xpbd::push_capsules(self, time, dt, &mut capsules);
             time += dt;
         }
         let Some(solver) = self.device.solver.as_mut() else {

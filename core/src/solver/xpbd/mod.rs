@@ -585,17 +585,7 @@ fn cancel_internal_torque(world: &mut World, model: &mut Model) {
 /// points serially in point order).
 fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> StepOutput {
     model.capsules.clear();
-    model.capsules.extend(
-        world
-            .manipulators
-            .iter()
-            .map(|m| (m.capsule_at(time + dt), m.capsule_at(time))),
-    );
-    model.capsules.extend(world.live_capsules.iter().map(|c| {
-        let mut before = *c;
-        before.centre -= c.velocity * dt;
-        (*c, before)
-    }));
+    push_capsules(world, time, dt, &mut model.capsules);
     let surfaces = Surfaces {
         planes: &world.settings.planes,
         friction: world.settings.layer.friction,
@@ -708,6 +698,23 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         }
     }
     out
+}
+
+/// The capsules of the substep from `time` to `time + dt`, each at the substep's end and at
+/// its start (the scripted tracks, then the live capsules moved back by their velocity), added
+/// to `out`: what the contact stage pushes against, here and on a device.
+pub(crate) fn push_capsules(world: &World, time: f64, dt: f64, out: &mut Vec<(Capsule, Capsule)>) {
+    out.extend(
+        world
+            .manipulators
+            .iter()
+            .map(|m| (m.capsule_at(time + dt), m.capsule_at(time))),
+    );
+    out.extend(world.live_capsules.iter().map(|c| {
+        let mut before = *c;
+        before.centre -= c.velocity * dt;
+        (*c, before)
+    }));
 }
 
 /// Stage 5a: velocities from the positions' change.
