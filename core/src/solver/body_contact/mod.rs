@@ -192,13 +192,18 @@ pub struct BodyContact {
 }
 
 impl BodyContact {
-    /// Whether any pair can touch (two bodies with surfaces, or a collider).
     /// Whether a body can touch another body or a static collider (a lone body's mesh
     /// touches nothing here).
     pub(crate) fn touches_others(&self) -> bool {
-        !self.colliders.is_empty() || self.meshes.len() > 1
+        !self.colliders.is_empty() || self.deformable_pairs()
     }
 
+    /// Whether two bodies with surfaces can touch each other.
+    pub(crate) fn deformable_pairs(&self) -> bool {
+        self.meshes.len() > 1
+    }
+
+    /// Whether any pair can touch (a body's surface, or a collider).
     pub fn any(&self) -> bool {
         !self.colliders.is_empty() || !self.meshes.is_empty()
     }

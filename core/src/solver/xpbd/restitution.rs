@@ -31,6 +31,8 @@ struct StiffBody {
     crossing: f64,
     /// That wave's speed, m/s (`crossing × wave_speed` is the body's largest extent).
     wave_speed: f64,
+    /// The body's smallest extent at rest, m.
+    thickness: f64,
     /// Restitution of its material.
     e: f64,
     /// Its display-surface contact points (indices into `World::surface`).
@@ -92,6 +94,7 @@ impl Restitution {
                     body: b,
                     crossing: (hi - lo).max() / speed,
                     wave_speed: speed,
+                    thickness: (hi - lo).min(),
                     e,
                     surface,
                     convex,
@@ -112,6 +115,16 @@ impl Restitution {
     /// never do more).
     pub(crate) fn acts_at(&self, dt: f64) -> bool {
         self.bodies.iter().any(|b| Self::weight(b, dt) > 0.0)
+    }
+
+    /// The bodies that get some restitution at substeps of `dt` seconds: body, share (at 1
+    /// the wave crosses it within a substep and an impact on a plane or a static collider
+    /// moves it as a whole) and its rest thickness (smallest extent), m.
+    pub(crate) fn shares_at(&self, dt: f64) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+        self.bodies
+            .iter()
+            .map(move |b| (b.body, Self::weight(b, dt), b.thickness))
+            .filter(|&(_, share, _)| share > 0.0)
     }
 
     /// The share of the restitution a body gets at substep `dt`.
