@@ -80,6 +80,9 @@ pub(crate) struct Model {
     /// The display-surface points by the cell they lie in, in colour order: the order the
     /// contact pass visits them (what a device solver can run a colour at a time).
     points: PointGroups,
+    /// Per point in that order, what the contact pass reads of it (in the order it reads
+    /// them: from `World::surface` in point order, a pass missed the cache at every point).
+    visits: Vec<PointVisit>,
     /// Springs solved as distance constraints (bodies without cells).
     springs: Vec<usize>,
     /// Shortest rest edge of any cell or constraint spring, m.
@@ -103,6 +106,8 @@ pub(crate) struct Model {
     /// Per display-surface point: the last constraint pass's (force, depth, force from the
     /// capsules), for the contact log.
     point_contact: Vec<(V3, f64, V3)>,
+    /// The points `point_contact` holds a contact of.
+    in_contact: Vec<u32>,
     /// The static colliders' grid candidates (scratch).
     collider_scratch: Vec<u32>,
     /// Per display-surface point: the collider and face normal it was put back onto in this
@@ -112,6 +117,14 @@ pub(crate) struct Model {
     logged_once: bool,
     /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
     restitution: Restitution,
+}
+
+/// A display-surface point as the contact pass reads it (`World::surface`'s records).
+#[derive(Debug, Clone)]
+struct PointVisit {
+    nodes: [u32; 8],
+    weights: [f64; 8],
+    reach: f64,
 }
 
 /// What one step reports to the world's frame totals.
@@ -172,6 +185,15 @@ impl Model {
         cells.finish(n);
         let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
         let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
+        let visits = points
+            .order
+            .iter()
+            .map(|&i| PointVisit {
+                nodes: world.surface.nodes[i as usize],
+                weights: world.surface.weights[i as usize],
+                reach: world.surface.reach[i as usize],
+            })
+            .collect();
         let s = &world.springs;
         let shortest_spring = springs
             .iter()
@@ -185,6 +207,7 @@ impl Model {
         Model {
             cells,
             points,
+            visits,
             springs,
             shortest_edge,
             previous: vec![V3::zeros(); n],
@@ -197,6 +220,7 @@ impl Model {
             capsules: Vec::new(),
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
+            in_contact: Vec::new(),
             collider_scratch: Vec::new(),
             collider_touch: vec![None; world.surface.len()],
             logged_once: false,
@@ -686,19 +710,21 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         out.capsule_force += force;
         out.capsule_work += work;
     }
-    let surface = &world.surface;
     let x = &mut world.nodes.position;
     let statics = &mut world.body_contact.colliders[..];
     let behind = world.settings.layer.thickness_m;
     model.logged_once = true;
-    for &i in &model.points.order {
+    for &i in &model.in_contact {
+        model.point_contact[i as usize] = (V3::zeros(), 0.0, V3::zeros());
+    }
+    model.in_contact.clear();
+    for (&i, visit) in model.points.order.iter().zip(&model.visits) {
         let i = i as usize;
-        model.point_contact[i] = (V3::zeros(), 0.0, V3::zeros());
         if colliders {
             model.collider_touch[i] = None;
         }
-        let (ids, weights) = (&surface.nodes[i], &surface.weights[i]);
-        let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], surface.reach[i]);
+        let (ids, weights) = (&visit.nodes, &visit.weights);
+        let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], visit.reach);
         if !near_surfaces && !colliders {
             continue;
         }
@@ -740,6 +766,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
                 c.depth,
                 c.from_capsules * (inv_dt2 / denominator),
             );
+            model.in_contact.push(i as u32);
         }
         let correction = c.correction + held.correction;
         for k in 0..8 {
