@@ -375,10 +375,10 @@ impl CellSet {
                     let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
                     solve_cell(local, &wl, shape[j], alphas, &axis[j]);
                 };
-                // A group takes a few microseconds: hand out at least 256 of them at a time
-                // (smaller colours stay on one thread; waking the other costs more).
+                // A group takes about a microsecond: hand out at least 16 of them at a time
+                // (a 16³ lattice's colour, 106 groups, splits into a few jobs per thread).
                 out.par_chunks_mut(LANES)
-                    .with_min_len(256)
+                    .with_min_len(16)
                     .enumerate()
                     .for_each(|(group, locals)| {
                         let first = group * LANES;
