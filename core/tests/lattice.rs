@@ -244,3 +244,20 @@ fn spread_force_conserves_force_and_torque_about_the_point() {
         .sum();
     assert!(torque.norm() < 1e-12, "{torque}");
 }
+
+/// An extent a float32 rounding over a whole number of cells gets that number: the corpus's
+/// Blender cylinder (0.6 × 1.2 × 0.6 m) at 10 cells is 5 × 10 × 5 from its OBJ (Y-up) and its
+/// USD (Z-up) alike, as their float32 coordinates round differently (it was 6 × 10 × 6 from
+/// the OBJ, 320 cells and a third more mass than from the USD's 250).
+#[test]
+fn an_extent_a_rounding_over_whole_cells_gets_whole_cells() {
+    for (half, tall) in [
+        (0.300_000_011_920_929, 1.199_999_976_158_142),
+        (0.300_000_011_920_929, 1.200_000_047_683_716),
+    ] {
+        let (p, t) = box_mesh([-half, 0.2, -half], [half, 0.2 + tall, half]);
+        let lattice = fit_lattice(&p, &t, &settings(10, SpringLayout::Both)).unwrap();
+        assert_eq!(lattice.dims, [5, 10, 5], "height {tall}");
+        assert_eq!(lattice.cells.len(), 250);
+    }
+}

@@ -90,7 +90,7 @@ impl Restitution {
                 let convex = surface.iter().all(|&k| {
                     world.surface.weights[k as usize]
                         .iter()
-                        .all(|w| (-1e-12..=1.0 + 1e-12).contains(w))
+                        .all(|w| (-1e-6..=1.0 + 1e-6).contains(w))
                 });
                 Some(StiffBody {
                     body: b,
