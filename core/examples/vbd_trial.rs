@@ -51,6 +51,13 @@
 //! [dynamics] [BUDGET...]]`: no scene named runs all (about 80 s on one idle core, most of it
 //! `cube`); budgets such as `X30 V1x10 V5x6 V1x30r0.95` (X: XPBD substeps per frame; V: VBD
 //! substeps x iterations, optional Chebyshev ρ) replace the scenes' own lists.
+//!
+//! Warm-started XPBD (the fourteenth session's trial of the resting bias): `W30` keeps each
+//! constraint's multiplier from the last substep and applies it (`x += Σ w ∇C λ`, gradients
+//! at the prediction) before the sweep; `D30` adds the last sweep's move per node instead.
+//! `WARM=β` keeps `β λ` (default 1). `TRIAL_DEBUG=1` prints, after each settling row, the
+//! force left at the end, how much the multipliers changed over one more frame and the
+//! fastest node (a row that has settled its sag but not its nodes is ringing at the substep).
 
 use nalgebra::{Matrix3, Vector3};
 use std::time::Instant;
@@ -294,8 +301,9 @@ impl Lattice {
         (g, hess, neg)
     }
 
-    /// One XPBD sweep (scalar port of `CellSet::solve` without barriers).
-    fn xpbd_sweep(&self, x: &mut [V3], dt: f64) {
+    /// One XPBD sweep (scalar port of `CellSet::solve` without barriers), multipliers
+    /// starting from `lambda` (per cell: volume, then the four corners).
+    fn xpbd_sweep(&self, x: &mut [V3], dt: f64, lambda: &mut [[f64; 5]]) {
         let (v0, inv_h) = (self.h.powi(3), 1.0 / self.h);
         let hydro = 1.0 / (self.lambda * v0) / (dt * dt);
         let dev = 1.0 / (2.0 * self.mu * v0 / 4.0) / (dt * dt);
@@ -304,16 +312,40 @@ impl Lattice {
                 let nodes = self.cells[cell as usize];
                 let mut xl = nodes.map(|p| x[p as usize]);
                 let wl = nodes.map(|p| self.w[p as usize]);
+                let l = &mut lambda[cell as usize];
                 if hydro.is_finite() {
-                    solve_cube_volume(&mut xl, &wl, 1.0 / v0, hydro);
+                    solve_cube_volume(&mut xl, &wl, 1.0 / v0, hydro, &mut l[0]);
                 }
-                for c in corners(self.odd[cell as usize]) {
-                    solve_corner(&mut xl, &wl, c, inv_h, dev);
+                for (k, c) in corners(self.odd[cell as usize]).into_iter().enumerate() {
+                    solve_corner(&mut xl, &wl, c, inv_h, dev, &mut l[1 + k]);
                 }
                 for (p, xp) in nodes.iter().zip(xl) {
                     x[*p as usize] = xp;
                 }
             }
+        }
+    }
+
+    /// Warm start: `x += Σ w ∇C(x) λ` over every constraint, gradients at the given `x`.
+    fn apply_multipliers(&self, x: &mut [V3], lambda: &[[f64; 5]]) {
+        let (v0, inv_h) = (self.h.powi(3), 1.0 / self.h);
+        let mut d = vec![V3::zeros(); x.len()];
+        for (cell, nodes) in self.cells.iter().enumerate() {
+            let xl = nodes.map(|p| x[p as usize]);
+            let l = lambda[cell];
+            let (_, grad) = cube_volume(&xl);
+            for k in 0..8 {
+                d[nodes[k] as usize] += grad[k] * (l[0] / v0);
+            }
+            for (m, c) in corners(self.odd[cell]).into_iter().enumerate() {
+                let (_, g) = corner_gradient(&xl, c, inv_h);
+                for (slot, gk) in [c, c ^ 1, c ^ 2, c ^ 4].into_iter().zip(g) {
+                    d[nodes[slot] as usize] += gk * l[1 + m];
+                }
+            }
+        }
+        for (i, di) in d.iter().enumerate() {
+            x[i] += di * self.w[i];
         }
     }
 
@@ -420,28 +452,31 @@ fn project<const N: usize>(
     grad: [V3; N],
     value: f64,
     alpha: f64,
+    lambda: &mut f64,
 ) {
     let mut denominator = alpha;
     for (&k, g) in slots.iter().zip(&grad) {
         denominator += w[k] * g.norm_squared();
     }
     if denominator > 0.0 && denominator.is_finite() {
+        let dl = (-value - alpha * *lambda) / denominator;
+        *lambda += dl;
         for (&k, g) in slots.iter().zip(&grad) {
-            x[k] += g * (-value / denominator * w[k]);
+            x[k] += g * (dl * w[k]);
         }
     }
 }
 
 /// The cell's volumetric constraint `V/V₀ − 1` (cells.rs `solve_cube_volume`).
-fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64) {
+fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64, lambda: &mut f64) {
     let (volume, grad) = cube_volume(x);
     let slots = std::array::from_fn(|k| k);
     let grad = grad.map(|g| g * inv_volume);
-    project(x, w, slots, grad, volume * inv_volume - 1.0, alpha);
+    project(x, w, slots, grad, volume * inv_volume - 1.0, alpha, lambda);
 }
 
-/// The shear constraint `‖E_c‖_F` of corner `c` (cells.rs `solve_corner`, isotropic).
-fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64) {
+/// The gradient of corner `c`'s shear constraint by slots `c, c^1, c^2, c^4` (zero at rest).
+fn corner_gradient(x: &[V3; 8], c: usize, inv_h: f64) -> (f64, [V3; 4]) {
     let s = signs(c, inv_h);
     let f = corner_f(x, c, &s);
     let e = green(&f);
@@ -449,14 +484,26 @@ fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64) {
     if value > 1e-14 {
         let p = f * e / value;
         let g = [0, 1, 2].map(|k| p.column(k) * s[k]);
-        let grad = [-(g[0] + g[1] + g[2]), g[0], g[1], g[2]];
-        project(x, w, [c, c ^ 1, c ^ 2, c ^ 4], grad, value, dev);
+        (value, [-(g[0] + g[1] + g[2]), g[0], g[1], g[2]])
+    } else {
+        (value, [V3::zeros(); 4])
+    }
+}
+
+/// The shear constraint `‖E_c‖_F` of corner `c` (cells.rs `solve_corner`, isotropic).
+fn solve_corner(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64, dev: f64, lambda: &mut f64) {
+    let (value, grad) = corner_gradient(x, c, inv_h);
+    if value > 1e-14 {
+        project(x, w, [c, c ^ 1, c ^ 2, c ^ 4], grad, value, dev, lambda);
     }
 }
 
 #[derive(Clone, Copy)]
 enum Solver {
     Xpbd(usize),
+    /// XPBD with the multipliers warm-started from the last substep: `W` applies them with
+    /// gradients at the prediction, `D` adds the last sweep's displacement per node.
+    XpbdWarm(usize, bool),
     /// Substeps per frame, iterations per substep, Chebyshev ρ (0: none).
     Vbd(usize, usize, f64),
     /// Velocity Verlet with the energy's exact forces (the dynamics' reference).
@@ -470,6 +517,8 @@ fn solvers(spec: &str) -> Vec<Solver> {
     spec.split_whitespace()
         .map(|t| match t.split_at(1) {
             ("X", n) => Solver::Xpbd(num(n)),
+            ("W", n) => Solver::XpbdWarm(num(n), true),
+            ("D", n) => Solver::XpbdWarm(num(n), false),
             (_, t) => {
                 let (t, rho) = t.split_once('r').unwrap_or((t, "0"));
                 let (s, it) = t.split_once('x').expect("VBD budget SxI");
@@ -483,6 +532,8 @@ impl Solver {
     fn label(&self) -> String {
         match *self {
             Solver::Xpbd(s) => format!("XPBD {s:>3} sub"),
+            Solver::XpbdWarm(s, true) => format!("XPBD {s:>3} warm"),
+            Solver::XpbdWarm(s, false) => format!("XPBD {s:>3} disp"),
             Solver::Vbd(s, it, rho) if rho > 0.0 => format!("VBD {s:>2}x{it:<2} r{rho}"),
             Solver::Vbd(s, it, _) => format!("VBD {s:>2}x{it:<2}"),
             Solver::Verlet(s) => format!("Verlet {s} sub"),
@@ -491,7 +542,7 @@ impl Solver {
 
     fn sweeps_per_frame(&self) -> usize {
         match *self {
-            Solver::Xpbd(s) | Solver::Verlet(s) => s,
+            Solver::Xpbd(s) | Solver::Verlet(s) | Solver::XpbdWarm(s, _) => s,
             Solver::Vbd(s, it, _) => s * it,
         }
     }
@@ -508,6 +559,9 @@ struct Sim<'a> {
     last: Vec<V3>,
     /// Verlet: the energy's gradient at `x` (empty until first needed).
     grad: Vec<V3>,
+    /// XPBD: per cell, the multipliers (volume, four corners); warm: the last sweep's move.
+    lambda: Vec<[f64; 5]>,
+    moved: Vec<V3>,
     gravity: V3,
     drag: f64,
     /// VBD blocks that needed the SPD fallback; wall time spent stepping, s.
@@ -528,6 +582,8 @@ impl<'a> Sim<'a> {
             older: zeros.clone(),
             last: zeros,
             grad: Vec::new(),
+            lambda: vec![[0.0; 5]; lat.cells.len()],
+            moved: vec![V3::zeros(); lat.rest.len()],
             gravity,
             drag,
             projected: 0,
@@ -537,12 +593,15 @@ impl<'a> Sim<'a> {
 
     fn frame(&mut self, solver: Solver) {
         let t0 = Instant::now();
-        let (Solver::Xpbd(substeps) | Solver::Vbd(substeps, ..) | Solver::Verlet(substeps)) =
-            solver;
+        let (Solver::Xpbd(substeps)
+        | Solver::XpbdWarm(substeps, _)
+        | Solver::Vbd(substeps, ..)
+        | Solver::Verlet(substeps)) = solver;
         let dt = 1.0 / FPS / substeps as f64;
         for _ in 0..substeps {
             match solver {
                 Solver::Xpbd(_) => self.xpbd_substep(dt),
+                Solver::XpbdWarm(_, exact) => self.xpbd_warm_substep(dt, exact),
                 Solver::Vbd(_, iters, rho) => self.vbd_substep(dt, iters, rho),
                 Solver::Verlet(_) => self.verlet_substep(dt),
             }
@@ -567,7 +626,38 @@ impl<'a> Sim<'a> {
                 self.x[i] += self.v[i] * dt;
             }
         }
-        self.lat.xpbd_sweep(&mut self.x, dt);
+        self.lambda.fill([0.0; 5]);
+        self.lat.xpbd_sweep(&mut self.x, dt, &mut self.lambda);
+        self.finish_velocities(dt);
+    }
+
+    fn xpbd_warm_substep(&mut self, dt: f64, exact: bool) {
+        self.start.copy_from_slice(&self.x);
+        for i in 0..self.x.len() {
+            if self.lat.w[i] > 0.0 {
+                self.v[i] += self.gravity * dt;
+                self.x[i] += self.v[i] * dt;
+            }
+        }
+        self.y.copy_from_slice(&self.x);
+        let beta: f64 = std::env::var("WARM")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(1.0);
+        for l in self.lambda.iter_mut() {
+            *l = l.map(|v| v * beta);
+        }
+        if exact {
+            self.lat.apply_multipliers(&mut self.x, &self.lambda);
+        } else {
+            for (x, d) in self.x.iter_mut().zip(&self.moved) {
+                *x += d;
+            }
+        }
+        self.lat.xpbd_sweep(&mut self.x, dt, &mut self.lambda);
+        for i in 0..self.x.len() {
+            self.moved[i] = self.x[i] - self.y[i];
+        }
         self.finish_velocities(dt);
     }
 
@@ -696,6 +786,24 @@ fn settle(
             least = least.min(lat.min_corner_j(&sim.x));
         }
         let sag = sags[frames - average..].iter().sum::<f64>() / average as f64;
+        if std::env::var("TRIAL_DEBUG").is_ok() {
+            let mut g = vec![V3::zeros(); n];
+            lat.gradient(&sim.x, V3::new(0.0, -9.81, 0.0), &mut g);
+            let weight = lat.mass.iter().cloned().fold(0.0, f64::max) * 9.81;
+            let before = sim.lambda.clone();
+            sim.frame(solver);
+            let drift = sim
+                .lambda
+                .iter()
+                .zip(&before)
+                .map(|(a, b)| (0..5).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            let size = before
+                .iter()
+                .map(|a| (0..5).map(|k| a[k].abs()).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            println!("  force left {:.3e} of a node weight; lambda change over a frame {drift:.3e} of {size:.3e}; speed {:.3e}", max_norm(&g) / weight, sim.v.iter().map(|v| v.norm()).fold(0.0, f64::max));
+        }
         let settled = sags
             .iter()
             .rposition(|s| (s - sag).abs() > 0.01 * sag.abs());

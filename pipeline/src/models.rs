@@ -4,13 +4,14 @@
 
 use crate::PipelineError;
 use springbake_core::cage::{self, Cage, Primitive};
+use springbake_core::lattice::fill::cell_fill;
 use springbake_core::lattice::{fit_lattice, surface_samples, Embedding, FitSettings, Lattice};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::scene::{BodyKind, BodySection, ModelKind, SceneFile, SpringsSpec};
 use springbake_core::solver::joints::{join_bodies_at, JointError};
 use springbake_core::solver::regions::{apply_region, Region};
-use springbake_core::solver::{BodyHandle, RigidBody, World};
+use springbake_core::solver::{BodyHandle, Integrator, RigidBody, World};
 
 /// Default node target of `model = "decimated"`.
 pub const DEFAULT_CAGE_VERTICES: u32 = 32;
@@ -148,7 +149,17 @@ pub fn add_body(
 ) -> Result<AddedBody, String> {
     let velocity = Vector3::from(section.velocity);
     let handle = match &analysis {
-        Analysis::Lattice(l) => world.add_lattice_body(name, l, material, velocity),
+        Analysis::Lattice(l) => {
+            let handle = world.add_lattice_body(name, l, material, velocity);
+            // The XPBD cells weigh and resist as much of them as the mesh fills; the papers'
+            // integrators keep their whole cells.
+            if world.settings.integrator == Integrator::Xpbd {
+                if let Some(fill) = cell_fill(l, points, triangles) {
+                    world.set_cell_fill(handle, &fill);
+                }
+            }
+            handle
+        }
         Analysis::Cage(c) => {
             // Mass from the mesh's enclosed volume when it is closed (module docs of `cage`).
             let volume = cage::mesh_volume(points, triangles);

@@ -410,3 +410,24 @@ fn a_decimated_cage_bakes_a_falling_sphere() {
     .unwrap_err();
     assert!(e.contains("cage_vertices: must be at least 4"), "{e}");
 }
+
+#[test]
+fn a_lattice_body_weighs_its_mesh_not_its_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, t) = uv_sphere([0.0, 0.0, 0.0], 0.5, 16, 32);
+    write_obj(&dir.path().join("ball.obj"), &p, &t);
+    let enclosed = springbake_core::cage::mesh_volume(&p, &t);
+    let head = "[output]\npath = \"out.glb\"\nframes = 2\n[[body]]\nsource = \"ball.obj\"\ncells = 8\nmaterial = \"rubber\"\n";
+    let mass = |pr: &Prepared| pr.world.nodes.mass.iter().sum::<f64>();
+    let (xpbd, _) = load_and_prepare(dir.path(), head).unwrap();
+    let ratio = mass(&xpbd) / (1100.0 * enclosed);
+    assert!((ratio - 1.0).abs() < 1e-5, "{ratio}");
+    assert!((xpbd.body_reports()[0].mass_kg - mass(&xpbd)).abs() < 1e-9);
+    // The papers' spring lattice keeps its whole cells.
+    let papers = format!("{head}[solver]\nintegrator = \"symplectic_euler\"\n");
+    let (springs, _) = load_and_prepare(dir.path(), &papers).unwrap();
+    let cells = springs.body_reports()[0].cells as f64;
+    let h = springs.body_reports()[0].cell_size;
+    assert!((mass(&springs) / (1100.0 * cells * h.powi(3)) - 1.0).abs() < 1e-9);
+    assert!(mass(&springs) > 1.25 * mass(&xpbd));
+}

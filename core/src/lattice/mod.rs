@@ -17,6 +17,7 @@ pub enum SpringLayout {
 }
 
 pub mod embed;
+pub mod fill;
 pub mod fit;
 pub mod surface;
 

@@ -64,6 +64,42 @@ impl World {
         handle
     }
 
+    /// Scale a lattice body's cells by how much of each its mesh fills (`fill`, per cell in
+    /// the lattice's order, from [`crate::lattice::fill::cell_fill`]): each cell's mass (shared
+    /// by its 8 corners) and its XPBD stiffness take the factor, so the body weighs what its
+    /// mesh does, its centre of mass and inertia are the mesh's, and each cell's wave speed is
+    /// kept. The springs (the papers' integrators) are left as they are.
+    pub fn set_cell_fill(&mut self, body: BodyHandle, fill: &[f64]) {
+        let info = &mut self.bodies[body.0];
+        if fill.len() != info.cells.len() || fill.iter().all(|&f| f == 1.0) {
+            return;
+        }
+        let base = info.nodes.start;
+        let mut share = vec![(0.0, 0u32); info.nodes.len()];
+        for (cell, &f) in info.cells.iter().zip(fill) {
+            for &n in cell {
+                let s = &mut share[n as usize - base];
+                s.0 += f;
+                s.1 += 1;
+            }
+        }
+        info.cell_stiffness.resize(info.cells.len(), 1.0);
+        for (scale, &f) in info.cell_stiffness.iter_mut().zip(fill) {
+            *scale *= f;
+        }
+        let n = &mut self.nodes;
+        for (i, &(sum, count)) in share.iter().enumerate() {
+            if count > 0 {
+                let m = &mut n.mass[base + i];
+                *m *= sum / count as f64;
+                if n.inv_mass[base + i] > 0.0 {
+                    n.inv_mass[base + i] = 1.0 / *m;
+                }
+            }
+        }
+        self.invalidate_prepared();
+    }
+
     /// Add any mass-spring model: node positions (metres) and masses (kg), springs as
     /// `(a, b, k, D)` with rest lengths taken from the given positions.
     pub fn add_body(
