@@ -105,14 +105,14 @@ pub fn cell_fill(
         }
     }
     let per_cell = (SAMPLES * SAMPLES * SAMPLES) as f64;
-    let sampled: f64 = inside.iter().map(|&n| n as f64 / per_cell).sum::<f64>() * h.powi(3);
+    let mut fill: Vec<f64> = inside.iter().map(|&n| n as f64 / per_cell).collect();
+    let sampled = fill.iter().sum::<f64>() * h.powi(3);
     if (sampled - enclosed).abs() > CLOSED_TOLERANCE * enclosed {
         return None;
     }
     // The samples' share of a cell is only good to a few per cent on a coarse lattice (a
     // 4 × 4 grid of lines per cell across a cylinder's disc); the enclosed volume is exact,
     // so the partly filled cells share the difference.
-    let mut fill: Vec<f64> = inside.iter().map(|&n| n as f64 / per_cell).collect();
     let whole = fill.iter().filter(|&&f| f >= 1.0).count() as f64;
     let partial: Vec<f64> = fill.iter().copied().filter(|&f| f < 1.0).collect();
     let target = enclosed / h.powi(3) - whole;
