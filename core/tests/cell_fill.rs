@@ -108,3 +108,54 @@ fn open_meshes_keep_whole_cells() {
     t.retain(|tri| !tri.iter().all(|&i| i & 4 != 0));
     assert!(cell_fill(&fit(&p, &t, 6), &p, &t).is_none());
 }
+
+/// A closed cylinder along x: `radius`, from x = 0 to `length`, `segments` around.
+fn rod(radius: f64, length: f64, segments: u32) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let mut points = vec![Point3::origin(), Point3::new(length, 0.0, 0.0)];
+    for s in 0..segments {
+        let a = std::f64::consts::TAU * s as f64 / segments as f64;
+        let (y, z) = (radius * a.cos(), radius * a.sin());
+        points.push(Point3::new(0.0, y, z));
+        points.push(Point3::new(length, y, z));
+    }
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        let (a0, a1) = (2 + 2 * s, 3 + 2 * s);
+        let (b0, b1) = (2 + 2 * ((s + 1) % segments), 3 + 2 * ((s + 1) % segments));
+        triangles.push([0, b0, a0]);
+        triangles.push([1, a1, b1]);
+        triangles.push([a0, b0, b1]);
+        triangles.push([a0, b1, a1]);
+    }
+    (points, triangles)
+}
+
+#[test]
+fn a_rod_thinner_than_the_samples_weighs_its_mesh() {
+    // 2 m long, 4 cm across, 8 cells along: one row of 25 cm cells, which the first 4 × 4
+    // grid of sample lines (6 cm apart) misses entirely. It used to keep whole cells and
+    // weigh 50 times its mesh.
+    let (p, t) = rod(0.02, 2.0, 24);
+    let enclosed = mesh_volume(&p, &t);
+    assert!(enclosed > 0.0);
+    let lattice = fit(&p, &t, 8);
+    let fill = cell_fill(&lattice, &p, &t).unwrap();
+    let (volume, centroid) = weighted(&lattice, Some(&fill));
+    assert!(
+        (volume / enclosed - 1.0).abs() < 1e-9,
+        "{volume} vs {enclosed}"
+    );
+    assert!(fill.iter().all(|&f| f > 0.0 && f < MIN_FILL), "{fill:?}");
+    assert!((centroid.x - 1.0).abs() < 0.01, "{centroid}");
+}
+
+#[test]
+fn a_mesh_with_flipped_normals_fills_as_much_as_the_right_way_round() {
+    let (p, t) = uv_sphere([0.0, 0.0, 1.0], 0.5, 16, 32);
+    let flipped: Vec<[u32; 3]> = t.iter().map(|&[a, b, c]| [a, c, b]).collect();
+    let lattice = fit(&p, &t, 8);
+    assert_eq!(fit(&p, &flipped, 8).cells, lattice.cells);
+    let right = cell_fill(&lattice, &p, &t).unwrap();
+    let wrong = cell_fill(&lattice, &p, &flipped).unwrap();
+    assert_eq!(right, wrong);
+}

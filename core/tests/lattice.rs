@@ -94,6 +94,20 @@ fn flat_mesh_gets_one_cell_thick_lattice() {
 }
 
 #[test]
+fn a_mesh_with_flipped_normals_is_as_solid_as_the_same_mesh_the_right_way_round() {
+    // Every face wound the other way (Blender's "Flip Normals", a mirrored object exported
+    // without reordering): the winding number inside is −1, and the box is still solid. It
+    // used to get only its 296 surface cells of 512: a hollow shell.
+    let (p, t) = box_mesh([0.0; 3], [1.0; 3]);
+    let flipped: Vec<[u32; 3]> = t.iter().map(|&[a, b, c]| [a, c, b]).collect();
+    let right = fit_lattice(&p, &t, &settings(8, SpringLayout::FaceDiagonals)).unwrap();
+    let wrong = fit_lattice(&p, &flipped, &settings(8, SpringLayout::FaceDiagonals)).unwrap();
+    assert_eq!(right.cell_count(), 512);
+    assert_eq!(wrong.cell_count(), 512);
+    assert_eq!(wrong.cells, right.cells);
+}
+
+#[test]
 fn open_box_without_lid_is_hollow_but_robust() {
     // A box with its top removed: the generalised winding number inside is about ½ at most and
     // falls off; the fit must not crash, must cover the surface, and all surface cells are there.

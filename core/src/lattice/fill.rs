@@ -2,7 +2,9 @@
 //! mesh, so a body's mass and stiffness are the mesh's, not its cells' (a sphere at 8 cells
 //! across is 57 % heavier as whole cubes, and its centre of mass and inertia are a cube's).
 //!
-//! Each cell is sampled on an `S × S × S` grid of points. Inside is the nonzero rule of the
+//! Each cell is sampled on an `S × S × S` grid of points (`S = 4`, doubled while the samples
+//! and the enclosed volume disagree, within a budget: a rod or plate thinner than the sample
+//! spacing is found at a finer one). Inside is the nonzero rule of the
 //! mesh's winding number along a ray in +z: one line of samples per `(x, y)` sample position
 //! of a grid column, the crossings of its triangles sorted once, each sample's winding the
 //! sum of the signs (`n_z`) of the crossings above it. Overlapping closed parts are their
@@ -14,23 +16,28 @@
 //! cells' shares (on a coarse lattice the samples alone are a few per cent off).
 //!
 //! The rule only means something for a closed mesh: [`cell_fill`] gives `None` when the
-//! sampled volume and the mesh's enclosed volume (divergence theorem) disagree, so an open
-//! sheet keeps whole cells.
+//! sampled volume and the mesh's enclosed volume (divergence theorem) still disagree at the
+//! finest sampling the budget allows, so an open sheet keeps whole cells.
 
 use super::Lattice;
 use nalgebra::{Point3, Vector3};
 
-/// Samples per cell edge.
-const SAMPLES: usize = 4;
+/// Samples per cell edge at first; doubled while the samples and the enclosed volume
+/// disagree (a part thinner than the sample spacing: a rod or a plate a cell thick).
+const FIRST_SAMPLES: usize = 4;
+/// Most samples in all (cells × samples per cell) a refinement may take.
+const SAMPLE_BUDGET: usize = 1 << 24;
 /// Least share a cell keeps: a cell the mesh barely enters still holds its nodes together.
+/// Where the mesh fills less than that of its cells on average (a thin rod in one row of
+/// cells) the floor is that average instead, so the body still weighs its mesh.
 pub const MIN_FILL: f64 = 0.1;
 /// Largest disagreement between the sampled and the enclosed volume, relative, for a mesh to
 /// count as closed.
 const CLOSED_TOLERANCE: f64 = 0.05;
 
 /// Per active cell of `lattice` (its order), the share of its volume inside the closed mesh
-/// `positions`/`triangles` (world metres), at least [`MIN_FILL`]; `None` when the mesh is not
-/// closed (see the module docs).
+/// `positions`/`triangles` (world metres), at least [`MIN_FILL`] (or the mean share, if that
+/// is less); `None` when the mesh is not closed (see the module docs).
 pub fn cell_fill(
     lattice: &Lattice,
     positions: &[Point3<f64>],
@@ -41,8 +48,51 @@ pub fn cell_fill(
         return None;
     }
     let h = lattice.cell_size;
+    let columns = triangles_by_column(lattice, positions, triangles);
+    let mut samples = FIRST_SAMPLES;
+    let mut fill = loop {
+        let fill = sampled_fill(lattice, positions, triangles, &columns, samples);
+        let sampled = fill.iter().sum::<f64>() * h.powi(3);
+        if (sampled - enclosed).abs() <= CLOSED_TOLERANCE * enclosed {
+            break fill;
+        }
+        samples *= 2;
+        if lattice.cells.len().saturating_mul(samples.pow(3)) > SAMPLE_BUDGET {
+            return None;
+        }
+    };
+    // The samples' share of a cell is only good to a few per cent on a coarse lattice (a
+    // 4 × 4 grid of lines per cell across a cylinder's disc); the enclosed volume is exact,
+    // so the partly filled cells share the difference.
+    let whole = fill.iter().filter(|&&f| f >= 1.0).count() as f64;
+    let partial: Vec<f64> = fill.iter().copied().filter(|&f| f < 1.0).collect();
+    let target = enclosed / h.powi(3) - whole;
+    let floor = MIN_FILL.min(target / partial.len().max(1) as f64);
+    // The scale that brings the clamped shares to the target (their sum grows with it).
+    let total = |scale: f64| -> f64 { partial.iter().map(|f| (f * scale).clamp(floor, 1.0)).sum() };
+    let (mut lo, mut hi) = (0.0, 2.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if total(mid) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    for f in fill.iter_mut().filter(|f| **f < 1.0) {
+        *f = (*f * hi).clamp(floor, 1.0);
+    }
+    Some(fill)
+}
+
+/// The triangles by the grid columns (cells in x, y) their xy bounds touch.
+fn triangles_by_column(
+    lattice: &Lattice,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+) -> Vec<Vec<u32>> {
+    let h = lattice.cell_size;
     let [nx, ny, _] = lattice.dims.map(|d| d as usize);
-    // Triangles by the grid columns their xy bounds touch.
     let mut columns: Vec<Vec<u32>> = vec![Vec::new(); nx * ny];
     let column_of = |v: f64, a: usize, n: usize| {
         (((v - lattice.origin[a]) / h).floor().max(0.0) as usize).min(n - 1)
@@ -59,22 +109,35 @@ pub fn cell_fill(
             }
         }
     }
+    columns
+}
+
+/// Per active cell, the share of its `samples³` sample points inside the mesh.
+fn sampled_fill(
+    lattice: &Lattice,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    columns: &[Vec<u32>],
+    samples: usize,
+) -> Vec<f64> {
+    let h = lattice.cell_size;
+    let nx = lattice.dims[0] as usize;
     // Active cells by column, bottom to top (cells are in grid order: x fastest).
-    let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); nx * ny];
+    let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); columns.len()];
     for (c, coords) in lattice.cells.iter().enumerate() {
         cells_of[coords[1] as usize * nx + coords[0] as usize].push(c);
     }
     let mut inside = vec![0u32; lattice.cells.len()];
     let mut hits: Vec<(f64, i32)> = Vec::new();
-    let offset = |m: usize, a: usize| (m as f64 + 0.5 + JITTER[a]) / SAMPLES as f64;
+    let offset = |m: usize, a: usize| (m as f64 + 0.5 + JITTER[a]) / samples as f64;
     for (column, cells) in cells_of.iter_mut().enumerate() {
         if cells.is_empty() {
             continue;
         }
         cells.sort_by_key(|&c| lattice.cells[c][2]);
         let (i, j) = (column % nx, column / nx);
-        for mx in 0..SAMPLES {
-            for my in 0..SAMPLES {
+        for mx in 0..samples {
+            for my in 0..samples {
                 let x = lattice.origin.x + (i as f64 + offset(mx, 0)) * h;
                 let y = lattice.origin.y + (j as f64 + offset(my, 1)) * h;
                 hits.clear();
@@ -90,7 +153,7 @@ pub fn cell_fill(
                 let mut next = 0;
                 for &c in cells.iter() {
                     let k = lattice.cells[c][2] as f64;
-                    for mz in 0..SAMPLES {
+                    for mz in 0..samples {
                         let z = lattice.origin.z + (k + offset(mz, 2)) * h;
                         while next < hits.len() && hits[next].0 <= z {
                             above -= hits[next].1;
@@ -104,38 +167,8 @@ pub fn cell_fill(
             }
         }
     }
-    let per_cell = (SAMPLES * SAMPLES * SAMPLES) as f64;
-    let mut fill: Vec<f64> = inside.iter().map(|&n| n as f64 / per_cell).collect();
-    let sampled = fill.iter().sum::<f64>() * h.powi(3);
-    if (sampled - enclosed).abs() > CLOSED_TOLERANCE * enclosed {
-        return None;
-    }
-    // The samples' share of a cell is only good to a few per cent on a coarse lattice (a
-    // 4 × 4 grid of lines per cell across a cylinder's disc); the enclosed volume is exact,
-    // so the partly filled cells share the difference.
-    let whole = fill.iter().filter(|&&f| f >= 1.0).count() as f64;
-    let partial: Vec<f64> = fill.iter().copied().filter(|&f| f < 1.0).collect();
-    let target = enclosed / h.powi(3) - whole;
-    // The scale that brings the clamped shares to the target (their sum grows with it).
-    let total = |scale: f64| -> f64 {
-        partial
-            .iter()
-            .map(|f| (f * scale).clamp(MIN_FILL, 1.0))
-            .sum()
-    };
-    let (mut lo, mut hi) = (0.0, 2.0);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if total(mid) < target {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    for f in fill.iter_mut().filter(|f| **f < 1.0) {
-        *f = (*f * hi).clamp(MIN_FILL, 1.0);
-    }
-    Some(fill)
+    let per_cell = samples.pow(3) as f64;
+    inside.iter().map(|&n| n as f64 / per_cell).collect()
 }
 
 /// The sample lines' offsets within a sample spacing, per axis (irrational, small).

@@ -7,7 +7,7 @@
 //!    triangle against the cells of its bounding box, boxes grown by a hair so touching counts.
 //! 3. Interior: the non-surface cells split into face-connected regions; each region is inside
 //!    when the generalised winding number (Jacobson et al. 2013) at its sample cells averages
-//!    above ½. That is robust for open, non-manifold and self-intersecting meshes, and costs
+//!    above ½ in magnitude (a mesh with flipped normals winds −1 inside). That is robust for open, non-manifold and self-intersecting meshes, and costs
 //!    one winding-number evaluation per region sample instead of one per cell.
 //! 4. Nodes are the corners of active cells (shared between neighbours); springs per
 //!    [`SpringLayout`]; islands are the connected components of the spring graph.
@@ -408,7 +408,9 @@ fn fill_interior(
             let centre = grid.point_position(c).coords + Vector3::repeat(grid.cell * 0.5);
             w += winding_number(&centre, positions, triangles);
         }
-        if w / samples.len() as f64 > 0.5 {
+        // The magnitude: a mesh whose faces all wind the other way (flipped normals, a
+        // mirrored object exported without reordering) reads −1 inside, and is as solid.
+        if (w / samples.len() as f64).abs() > 0.5 {
             for &m in &members {
                 active[m] = true;
             }
