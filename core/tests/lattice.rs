@@ -108,6 +108,22 @@ fn a_mesh_with_flipped_normals_is_as_solid_as_the_same_mesh_the_right_way_round(
 }
 
 #[test]
+fn a_mesh_thinner_than_a_cell_along_up_is_centred_in_its_cells() {
+    // A 2 m plank 4 cm thick at 8 cells: one layer of 25 cm cells. Aligned to its bottom it
+    // would sit in the lowest 4 cm of its cells, their centre of mass 10.5 cm above its own.
+    let (p, t) = box_mesh([0.0, 0.3, 0.0], [2.0, 0.34, 0.2]);
+    let l = fit_lattice(&p, &t, &settings(8, SpringLayout::FaceDiagonals)).unwrap();
+    assert_eq!(l.dims, [8, 1, 1]);
+    let middle = l.origin.y + 0.5 * l.cell_size;
+    assert!((middle - 0.32).abs() < 1e-12, "{}", l.origin);
+    // Thicker than a cell: aligned to the bottom as before.
+    let (p, t) = box_mesh([0.0, 0.3, 0.0], [2.0, 0.7, 0.2]);
+    let l = fit_lattice(&p, &t, &settings(8, SpringLayout::FaceDiagonals)).unwrap();
+    assert_eq!(l.dims, [8, 2, 1]);
+    assert!((l.origin.y - 0.3).abs() < 1e-12, "{}", l.origin);
+}
+
+#[test]
 fn open_box_without_lid_is_hollow_but_robust() {
     // A box with its top removed: the generalised winding number inside is about ½ at most and
     // falls off; the fit must not crash, must cover the surface, and all surface cells are there.

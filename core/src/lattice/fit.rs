@@ -2,7 +2,10 @@
 //!
 //! 1. Grid: cell edge from the resolution; the grid covers the mesh's bounding box, centred on
 //!    the horizontal axes and aligned to the box's bottom along up (so a body resting on its
-//!    lattice's bottom nodes shows its lowest vertex on the floor).
+//!    lattice's bottom nodes shows its lowest vertex on the floor), except that a mesh thinner
+//!    than a cell along up is centred in its cells there too: a rod or plate lying in one
+//!    layer of cells then has the cells' centre of mass, not one half a cell above it (a rod
+//!    at the bottom of its cells rolled like a top-heavy thing).
 //! 2. Surface cells: exact triangle–box overlap (separating-axis test, Akenine-Möller) of every
 //!    triangle against the cells of its bounding box, boxes grown by a hair so touching counts.
 //! 3. Interior: the non-surface cells split into face-connected regions; each region is inside
@@ -30,7 +33,8 @@ pub enum Resolution {
 pub struct FitSettings {
     pub resolution: Resolution,
     pub layout: SpringLayout,
-    /// Index of the up axis (0, 1 or 2): the grid's bottom is aligned with the mesh's lowest point.
+    /// Index of the up axis (0, 1 or 2): the grid's bottom is aligned with the mesh's lowest
+    /// point (a mesh thinner than a cell along it is centred in its cells instead).
     pub up_index: usize,
     /// Refuse lattices whose estimated memory exceeds this many bytes.
     pub memory_limit_bytes: u64,
@@ -157,7 +161,7 @@ pub fn fit_lattice(
         }
         dims[a] = n as u64;
         let span = n * cell;
-        origin[a] = if a == settings.up_index {
+        origin[a] = if a == settings.up_index && n > 1.0 {
             lo[a]
         } else {
             lo[a] - (span - extent[a]) / 2.0
