@@ -31,8 +31,8 @@ const SAMPLE_BUDGET: usize = 1 << 24;
 /// and its corner nodes are not so much lighter than their neighbours that one sweep per
 /// substep leaves them ringing. At 0.1 a jelly icosphere, which the travel bound then gives
 /// more substeps, took 969 of them over 72 frames against 875 at 0.25 (796 with whole cells);
-/// the corpus' two-object scene 2318 against 1979 (1641). The partly filled cells above the
-/// floor share the rest, so the body still weighs its mesh. Where the mesh fills less than
+/// the corpus' two-object scene 2318 against 1979 (1641). The other partly filled cells
+/// share the rest, so the body still weighs its mesh. Where the mesh fills less than
 /// that of its cells on average (a thin rod in one row of cells) the floor is that average.
 pub const MIN_FILL: f64 = 0.25;
 /// Largest disagreement between the sampled and the enclosed volume, relative, for a mesh to
