@@ -387,10 +387,10 @@ impl World {
     }
 
     /// The node count [`on_worker`] weighs against [`SERIAL_BELOW_NODES`]: an XPBD world counts
-    /// for an eighth of its nodes (see [`XPBD_SERIAL_FACTOR`]).
+    /// for twice its nodes (see [`XPBD_PARALLEL_WEIGHT`]).
     fn parallel_size(&self) -> usize {
         match self.settings.integrator {
-            Integrator::Xpbd => self.nodes.len() / XPBD_SERIAL_FACTOR,
+            Integrator::Xpbd => self.nodes.len() * XPBD_PARALLEL_WEIGHT,
             _ => self.nodes.len(),
         }
     }
@@ -401,11 +401,14 @@ impl World {
 /// 613-node demo bakes in 2.8 s on one thread, 3.3–3.7 s on two).
 const SERIAL_BELOW_NODES: usize = PAR_CHUNK;
 
-/// The XPBD step does about an eighth of the papers' step's work per node between its
-/// parallel passes (a colour's cells, four at a time): it stays on one thread below eight
-/// times as many nodes (measured: the 4096-node standard scene, 3.3 s on one thread, 3.6 s
-/// on two).
-const XPBD_SERIAL_FACTOR: usize = 8;
+/// The XPBD step's colour passes share out a colour's cells sixteen four-cell groups at a
+/// time, so they pay for a second thread at fewer nodes than the papers' step: an XPBD world
+/// stays on one thread below half as many nodes (1024). Measured through the CLI, a Blender
+/// cube at 100 frames, best of three, 2 cores: 1331 nodes 1.37 s on one thread, 1.12 s on
+/// two; 2197 nodes 2.10 / 1.62 s; the 4096-node standard scene 3.78 / 2.88 s; 729 nodes
+/// 0.83 s either way. (Before the colours were shared out in small groups, one thread did
+/// a 16³ lattice's colours and the standard scene took 3.3 s on one thread, 3.6 s on two.)
+const XPBD_PARALLEL_WEIGHT: usize = 2;
 
 /// Run `f` (the steps of a world of `nodes` nodes) on a thread-pool worker. Called from any
 /// other thread, each parallel pass of a step would hand its work to the pool and wait for it
