@@ -3,15 +3,16 @@
 //! 1. Grid: cell edge from the resolution; the grid covers the mesh's bounding box, centred on
 //!    the horizontal axes and aligned to the box's bottom along up (so a body resting on its
 //!    lattice's bottom nodes shows its lowest vertex on the floor), except that a mesh thinner
-//!    than a cell along up is centred in its cells there too: a rod or plate lying in one
-//!    layer of cells then has the cells' centre of mass, not one half a cell above it (a rod
-//!    at the bottom of its cells rolled like a top-heavy thing).
+//!    than a cell along up is centred in its cells there too: the cells of a rod or plank
+//!    lying in one layer of them balance where it does, not up to half a cell above it (a rod
+//!    at the bottom of its cells rolled to and fro like a top-heavy thing).
 //! 2. Surface cells: exact triangle–box overlap (separating-axis test, Akenine-Möller) of every
 //!    triangle against the cells of its bounding box, boxes grown by a hair so touching counts.
 //! 3. Interior: the non-surface cells split into face-connected regions; each region is inside
 //!    when the generalised winding number (Jacobson et al. 2013) at its sample cells averages
-//!    above ½ in magnitude (a mesh with flipped normals winds −1 inside). That is robust for open, non-manifold and self-intersecting meshes, and costs
-//!    one winding-number evaluation per region sample instead of one per cell.
+//!    above ½ in magnitude (a mesh with flipped normals winds −1 inside). That is robust for
+//!    open, non-manifold and self-intersecting meshes, and costs one winding-number
+//!    evaluation per region sample instead of one per cell.
 //! 4. Nodes are the corners of active cells (shared between neighbours); springs per
 //!    [`SpringLayout`]; islands are the connected components of the spring graph.
 

@@ -272,9 +272,11 @@ impl Model {
 
     /// Elastic energy of the cells and constraint springs now, J, as the last substep's
     /// elastic solve left them: without its rigid contacts' projection, which the next
-    /// substep's solve relaxes. Projected out of the floor by a tenth of a millimetre in a
-    /// 2 mm cell, a small steel body's cells read a joule, 170 times the energy of its drop,
-    /// and that reading also raised the energy balance's budget for the rest of the bake.
+    /// substep's solve relaxes. Read after the projection, a rubber ball's cells held 3.4
+    /// times all the energy the ball had at its impact, and that reading also raised the
+    /// energy balance's budget for the rest of the bake. What is left (1.3–1.7 times for that
+    /// ball, a joule for a 5 mm steel sphere) is one sweep's residual, which stiff cells read
+    /// as energy.
     pub(crate) fn elastic_energy(&self, world: &World) -> f64 {
         let relaxed: Vec<V3>;
         let x = if self.contact_shifted && self.contact_shift.len() == world.nodes.len() {
