@@ -275,7 +275,7 @@ impl Model {
     /// substep's solve relaxes. Read after the projection, a rubber ball's cells held 3.4
     /// times all the energy the ball had at its impact, and that reading also raised the
     /// energy balance's budget for the rest of the bake. What is left (1.3–1.7 times for that
-    /// ball, a joule for a 5 mm steel sphere) is one sweep's residual, which stiff cells read
+    /// ball, 2 J for a 5 mm steel sphere) is one sweep's residual, which stiff cells read
     /// as energy.
     pub(crate) fn elastic_energy(&self, world: &World) -> f64 {
         let relaxed: Vec<V3>;
