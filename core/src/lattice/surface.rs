@@ -7,6 +7,12 @@
 //! third of the area of every triangle around it); a longer triangle is covered by a barycentric
 //! grid of samples sharing its area, so a coarse mesh (a cube of 12 triangles) still touches a
 //! thin manipulator in the middle of a face. The areas sum to the mesh's area.
+//!
+//! A fine mesh's vertices are thinned to one per [`VERTEX_CLUSTER`] of the spacing (the vertex
+//! nearest its cluster's area-weighted centre, carrying the cluster's area): a sculpt of half a
+//! million vertices (and glTF's split copies of every vertex along a seam or a flat-shaded
+//! edge) would otherwise put every one of them through the contact pass each substep, 20 s of
+//! a 48-frame bake, for no contact a cell-sized lattice can resolve.
 
 use nalgebra::Point3;
 
@@ -14,6 +20,9 @@ use nalgebra::Point3;
 /// embedding): beyond it the spacing grows for the whole mesh. Without the cap a small file of
 /// many repeated large triangles asked for 24 GB (issue 17).
 pub const MAX_GRID_SAMPLES: usize = 1 << 20;
+
+/// Side of a vertex cluster, in sample spacings.
+pub const VERTEX_CLUSTER: f64 = 0.5;
 
 /// Grid subdivisions of a triangle whose longest edge is `longest` at `spacing` (≤ 2: the
 /// triangle's own vertices serve).
@@ -84,13 +93,54 @@ pub fn surface_samples(
             }
         }
     }
-    for (i, &area) in vertex_area.iter().enumerate() {
-        if area > 0.0 {
-            points.push(positions[i]);
-            areas.push(area);
-        }
+    for (vertex, area) in thin_vertices(positions, &vertex_area, VERTEX_CLUSTER * spacing) {
+        points.push(positions[vertex]);
+        areas.push(area);
     }
     (points, areas)
+}
+
+/// The vertices with an area, one per cube of side `side` (the one nearest the cube's
+/// area-weighted centre, with the cube's whole area), in order of first vertex.
+fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> Vec<(usize, f64)> {
+    let key = |p: &Point3<f64>| {
+        if side > 0.0 && side.is_finite() {
+            p.coords
+                .map(|c| (c / side).floor().clamp(-1e15, 1e15) as i64)
+        } else {
+            nalgebra::Vector3::zeros()
+        }
+    };
+    // Per cluster, in order of its first vertex: area, area-weighted sum of positions.
+    let mut cluster_of = std::collections::HashMap::new();
+    let mut clusters: Vec<(f64, nalgebra::Vector3<f64>)> = Vec::new();
+    let mut member = vec![usize::MAX; positions.len()];
+    for (i, &area) in vertex_area.iter().enumerate() {
+        if area > 0.0 && positions[i].coords.iter().all(|c| c.is_finite()) {
+            let c = *cluster_of.entry(key(&positions[i])).or_insert_with(|| {
+                clusters.push((0.0, nalgebra::Vector3::zeros()));
+                clusters.len() - 1
+            });
+            clusters[c].0 += area;
+            clusters[c].1 += positions[i].coords * area;
+            member[i] = c;
+        }
+    }
+    let mut nearest = vec![(f64::INFINITY, usize::MAX); clusters.len()];
+    for (i, &c) in member.iter().enumerate() {
+        if c != usize::MAX {
+            let centre = clusters[c].1 / clusters[c].0;
+            let d = (positions[i].coords - centre).norm_squared();
+            if d < nearest[c].0 {
+                nearest[c] = (d, i);
+            }
+        }
+    }
+    nearest
+        .iter()
+        .zip(&clusters)
+        .map(|(&(_, vertex), &(area, _))| (vertex, area))
+        .collect()
 }
 
 #[cfg(test)]
@@ -115,9 +165,8 @@ mod tests {
         }
         let (sp, st) = uv_sphere([0.0; 3], 1.0, 16, 32);
         let (points, areas) = surface_samples(&sp, &st, 1.0);
-        assert_eq!(
-            points.len(),
-            sp.len(),
+        assert!(
+            points.iter().all(|q| sp.contains(q)),
             "fine meshes are sampled at their vertices"
         );
         let total: f64 = areas.iter().sum();
@@ -125,6 +174,56 @@ mod tests {
             total > 12.0 && total < 4.0 * std::f64::consts::PI,
             "{total}"
         );
+    }
+
+    #[test]
+    fn a_fine_mesh_keeps_one_vertex_per_cluster_and_its_whole_area() {
+        // 64 × 128 quads on a unit sphere: 8 k vertices, some 3 cm apart at the equator.
+        let (sp, st) = uv_sphere([0.0; 3], 1.0, 64, 128);
+        let spacing = 0.25;
+        let (points, areas) = surface_samples(&sp, &st, spacing);
+        let mesh_area: f64 = st
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| sp[i as usize]);
+                0.5 * (b - a).cross(&(c - a)).norm()
+            })
+            .sum();
+        assert!((areas.iter().sum::<f64>() - mesh_area).abs() < 1e-9 * mesh_area);
+        // About one point per (spacing / 2)² of surface, not one per vertex.
+        let side = VERTEX_CLUSTER * spacing;
+        assert!(
+            points.len() < 2 * (mesh_area / (side * side)) as usize,
+            "{}",
+            points.len()
+        );
+        assert!(
+            points.len() * 4 < sp.len(),
+            "{} of {}",
+            points.len(),
+            sp.len()
+        );
+        // Every vertex still has a sample within a cluster's diagonal.
+        for v in &sp {
+            let near = points.iter().any(|p| (p - v).norm() <= 3f64.sqrt() * side);
+            assert!(near, "no sample near {v}");
+        }
+    }
+
+    #[test]
+    fn coincident_vertices_become_one_sample() {
+        // A box whose faces have their own vertices (flat shading as glTF writes it).
+        let (p, t) = box_mesh([0.0; 3], [1.0; 3]);
+        let mut split = Vec::new();
+        let mut tris = Vec::new();
+        for tri in &t {
+            let base = split.len() as u32;
+            split.extend(tri.map(|i| p[i as usize]));
+            tris.push([base, base + 1, base + 2]);
+        }
+        let (points, areas) = surface_samples(&split, &tris, 1.0);
+        assert_eq!(points.len(), 8, "one sample per corner");
+        assert!((areas.iter().sum::<f64>() - 6.0).abs() < 1e-9);
     }
 
     #[test]
