@@ -86,6 +86,12 @@ enum Command {
         /// `cpu`.
         #[arg(long, value_name = "auto|gpu|cpu")]
         device: Option<springbake_core::scene::DeviceSpec>,
+        /// How a glTF output stores the motion, over the scene's `[output] cache`: `morph` (a
+        /// morph target per frame: plays anywhere, grows with vertices × frames), `skin` (the
+        /// lattice's nodes as joints: small at any vertex count) or `pca` (the motion's
+        /// principal components as a few morph targets).
+        #[arg(long, value_name = "morph|skin|pca")]
+        cache: Option<springbake_core::scene::CacheSpec>,
     },
     /// Bake every combination of varied settings ("wedging"), with an index and a contact sheet.
     ///
@@ -234,6 +240,7 @@ fn run(command: Command) -> Result<(), Failure> {
             progress,
             no_plugins,
             device,
+            cache,
         } => {
             let overrides = MeshOverrides {
                 output,
@@ -242,6 +249,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 cells,
                 material,
                 device,
+                cache,
             };
             let loaded = load_input(&input, &overrides)?;
             let (registry, found) =

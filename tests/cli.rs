@@ -215,8 +215,31 @@ fn a_large_output_is_announced_with_its_size_before_the_bake() {
     // 40 401 vertices × 120 frames of morph targets: 117.9 MB when baked.
     assert!(
         err.contains("the output will be about 123 MB (40401 vertices × 120 frames)")
-            && err.contains("cache = \"pca\""),
+            && err.contains("--cache pca"),
         "{err}"
+    );
+    // What the message offers works: the lattice as joints, a small file.
+    let skin = springbake(&[
+        "bake",
+        grid.to_str().unwrap(),
+        "--frames",
+        "120",
+        "--cells",
+        "4",
+        "--cache",
+        "skin",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(skin.status.success(), "{}", stderr(&skin));
+    let size = std::fs::metadata(&out).unwrap().len();
+    assert!(size < 10_000_000, "{size} bytes");
+    let bad = springbake(&["bake", grid.to_str().unwrap(), "--cache", "bones"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        stderr(&bad).contains("morph, skin or pca"),
+        "{}",
+        stderr(&bad)
     );
     let small = springbake(&[
         "bake",

@@ -174,6 +174,18 @@ pub enum CacheSpec {
     Pca,
 }
 
+impl std::str::FromStr for CacheSpec {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "morph" => Ok(CacheSpec::Morph),
+            "skin" => Ok(CacheSpec::Skin),
+            "pca" => Ok(CacheSpec::Pca),
+            _ => Err(format!("unknown cache \"{s}\": morph, skin or pca")),
+        }
+    }
+}
+
 /// `[world]`
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]

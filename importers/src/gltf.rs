@@ -57,6 +57,7 @@ impl Importer for GltfImporter {
         }
         let (materials, mut notes) = surface_materials(&doc);
         notes.extend(posed_notes);
+        notes.extend(animated_mesh_notes(&doc, &starts, &meshes));
         Ok(ImportedScene {
             materials,
             notes,
@@ -70,6 +71,45 @@ impl Importer for GltfImporter {
             },
         })
     }
+}
+
+/// A note per mesh whose node, or a node above it, the first animation moves: the bake starts
+/// from the pose at t = 0 and its own motion replaces the animation.
+fn animated_mesh_notes(
+    doc: &GltfDocument,
+    starts: &[pose::StartValue],
+    meshes: &[DisplayMesh],
+) -> Vec<String> {
+    let nodes = doc.array("nodes");
+    let mut parent = vec![None; nodes.len()];
+    for (i, n) in nodes.iter().enumerate() {
+        for c in children(n) {
+            if let Some(slot) = parent.get_mut(c) {
+                *slot = Some(i);
+            }
+        }
+    }
+    let moved = |node: usize| starts.iter().any(|s| s.node == node && s.path != "weights");
+    meshes
+        .iter()
+        .filter(|m| {
+            let node = m
+                .source_key
+                .strip_prefix("node:")
+                .and_then(|n| n.parse().ok());
+            // Walk up at most `nodes.len()` steps (scene_nodes refused cycles already).
+            std::iter::successors(node, |&n: &usize| parent.get(n).copied().flatten())
+                .take(nodes.len())
+                .any(moved)
+        })
+        .map(|m| {
+            format!(
+                "\"{}\" is animated in the source: the bake starts from its pose at t = 0 and \
+                 replaces that animation (a scene file's [[trajectory]] moves a body along a path)",
+                m.name
+            )
+        })
+        .collect()
 }
 
 /// A node of the default scene with its world matrix.

@@ -559,3 +559,49 @@ fn integer_positions_and_views_past_the_declared_buffer_are_refused() {
         "{err}"
     );
 }
+
+#[test]
+fn a_mesh_moved_by_an_animation_is_named_in_a_note() {
+    // Node 0 (no mesh) is animated and carries mesh node 1; node 2 stands still.
+    let mut bin = f32s(&SQUARE);
+    bin.extend(f32s(&[0.0, 1.0]));
+    bin.extend(f32s(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0]));
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    let file = serde_json::to_vec(&json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0, 2]}],
+        "nodes": [
+            {"name": "Mover", "children": [1]},
+            {"mesh": 0, "name": "Carried"},
+            {"mesh": 0, "name": "Still", "translation": [3, 0, 0]}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "animations": [{
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+            "samplers": [{"input": 1, "output": 2}]
+        }],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]},
+            {"bufferView": 1, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]},
+            {"bufferView": 2, "componentType": 5126, "count": 2, "type": "VEC3"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 8},
+            {"buffer": 0, "byteOffset": 56, "byteLength": 24}
+        ],
+        "buffers": [{"byteLength": bin.len(), "uri": uri}],
+    }))
+    .unwrap();
+    let scene = import_bytes("moved.gltf", &file).unwrap();
+    let animated: Vec<&String> = scene
+        .notes
+        .iter()
+        .filter(|n| n.contains("is animated in the source"))
+        .collect();
+    assert_eq!(animated.len(), 1, "{:?}", scene.notes);
+    assert!(animated[0].starts_with("\"Carried\""), "{}", animated[0]);
+}

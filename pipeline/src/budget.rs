@@ -165,9 +165,9 @@ pub fn large_output_note(prepared: &Prepared, scene: &SceneFile, output: &Path) 
         Some("glb" | "gltf")
     );
     let smaller = if gltf {
-        "[output] cache = \"pca\" (the motion's principal components) or \"skin\" (the lattice as joints), or fewer frames"
+        "--cache pca (the motion's principal components) or --cache skin (the lattice as joints) ([output] cache in a scene file), or fewer frames"
     } else {
-        "a glTF with [output] cache = \"pca\" or \"skin\", or fewer frames"
+        "a glTF output (.glb) with --cache pca or --cache skin, or fewer frames"
     };
     Some(format!(
         "{}: the output will be about {:.0} MB ({vertices} vertices × {frames} frames); {smaller} make it smaller",

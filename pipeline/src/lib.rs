@@ -376,6 +376,8 @@ pub struct MeshOverrides {
     pub material: Option<String>,
     /// `--device`: where the solver runs, over the scene's `[solver] device`.
     pub device: Option<springbake_core::scene::DeviceSpec>,
+    /// `--cache`: how a glTF output stores the motion, over the scene's `[output] cache`.
+    pub cache: Option<springbake_core::scene::CacheSpec>,
 }
 
 impl MeshOverrides {
@@ -394,6 +396,9 @@ impl MeshOverrides {
         }
         if let Some(d) = self.device {
             scene.solver.device = d;
+        }
+        if let Some(c) = self.cache {
+            scene.output.cache = c;
         }
     }
 }
@@ -417,6 +422,9 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
     }
     if let Some(device) = o.device {
         scene.solver.device = device;
+    }
+    if let Some(cache) = o.cache {
+        scene.output.cache = cache;
     }
     scene.world.floor = Some(f64::NAN); // "automatic": resolved against the mesh in `prepare`
     scene.body.push(BodySection {

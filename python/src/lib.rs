@@ -61,6 +61,7 @@ fn bake<'py>(
         cells: None,
         material: None,
         device: None,
+        cache: None,
     };
     let loaded = if scene.is_instance_of::<PyDict>() {
         scene_of_dict(py, scene, base_dir, &overrides)?
