@@ -24,11 +24,14 @@ fn bytes_per_node(integrator: IntegratorSpec) -> u64 {
 }
 
 /// Bytes per display vertex and output frame at peak, by output format (measured: glTF 76,
-/// point caches 35, USD 112, plus usd-core's own 100 MB).
-fn bytes_per_vertex_frame(output: &Path) -> (u64, u64) {
+/// point caches 35, USD 112, plus usd-core's own 100 MB; a glTF of principal components 115:
+/// the fit keeps the displacements and their residual beside the frames).
+fn bytes_per_vertex_frame(scene: &SceneFile, output: &Path) -> (u64, u64) {
+    use springbake_core::scene::CacheSpec;
     match extension(output).as_str() {
         "pc2" | "mdd" => (40, 0),
         "usda" | "usdc" | "usd" | "usdz" => (128, 160 << 20),
+        _ if scene.output.cache == CacheSpec::Pca => (128, 0),
         _ => (88, 0),
     }
 }
@@ -115,7 +118,7 @@ pub fn estimate_memory(prepared: &Prepared, scene: &SceneFile, output: &Path) ->
     let nodes = prepared.world.nodes.len() as u64;
     let vertices = display_vertices(prepared);
     let frames = scene.output.frames as u64;
-    let (per_vertex_frame, exporter_base) = bytes_per_vertex_frame(output);
+    let (per_vertex_frame, exporter_base) = bytes_per_vertex_frame(scene, output);
     let world = nodes.saturating_mul(bytes_per_node(scene.solver.integrator));
     let baked = vertices
         .saturating_mul(frames)
