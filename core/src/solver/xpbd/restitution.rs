@@ -345,21 +345,16 @@ fn bounce(
         nudge(&mut rigid, *p, n * share);
     }
     let mut impulses = vec![share; contacts.len()];
-    for pass in 0..PASSES {
-        for k in 0..contacts.len() {
-            // Forwards and backwards in turn, so no point is always first.
-            let k = if pass % 2 == 0 {
-                k
-            } else {
-                contacts.len() - 1 - k
-            };
-            let ((p, n), total) = (&contacts[k], &mut impulses[k]);
-            let now = rigid.velocity_at(p).dot(n);
-            let j = (*total + (target(p, n) - now) / inverse_mass_along(&rigid, *p, *n)).max(0.0);
-            nudge(&mut rigid, *p, n * (j - *total));
-            *total = j;
-        }
-    }
+    let goals = SequentialImpulses {
+        passes: PASSES,
+        alternate: true,
+        weight: 1.0,
+        bias: V3::zeros(),
+    };
+    goals.solve(&mut rigid, &mut impulses, |k| {
+        let (p, n) = contacts[k];
+        (p, n, target(&p, &n))
+    });
     let (dv, dw) = (
         rigid.velocity - after.velocity,
         rigid.angular_velocity - after.angular_velocity,
@@ -367,6 +362,47 @@ fn bounce(
     let nodes = &mut world.nodes;
     for i in range {
         nodes.velocity[i] += dv + dw.cross(&(nodes.position[i] - after.centre));
+    }
+}
+
+/// Sequential impulses on a rigid motion along contact normals (Catto's accumulated impulses):
+/// each pass moves every point's normal velocity, plus `bias` along the normal, `weight` of
+/// the way to its goal, the point's impulse accumulated and never pulling.
+struct SequentialImpulses {
+    passes: usize,
+    /// Forwards and backwards over the points in turn, so no point is always first.
+    alternate: bool,
+    weight: f64,
+    /// Velocity added to the rigid motion's at each point before it is compared with the goal
+    /// (gravity's for the coming substep), m/s.
+    bias: V3,
+}
+
+impl SequentialImpulses {
+    /// `point(k)` is point `k`'s (position, normal, goal normal velocity); `totals[k]` its
+    /// accumulated impulse, starting from what it holds.
+    fn solve(
+        &self,
+        rigid: &mut RigidMotion,
+        totals: &mut [f64],
+        point: impl Fn(usize) -> (V3, V3, f64),
+    ) {
+        let count = totals.len();
+        for pass in 0..self.passes {
+            for k in 0..count {
+                let k = if self.alternate && pass % 2 == 1 {
+                    count - 1 - k
+                } else {
+                    k
+                };
+                let (p, n, goal) = point(k);
+                let now = (rigid.velocity_at(&p) + self.bias).dot(&n);
+                let push = self.weight * (goal - now) / inverse_mass_along(rigid, p, n);
+                let j = (totals[k] + push).max(0.0);
+                nudge(rigid, p, n * (j - totals[k]));
+                totals[k] = j;
+            }
+        }
     }
 }
 
@@ -412,17 +448,17 @@ fn support(
         let n = plane.normal;
         impulses.clear();
         impulses.resize(points.len(), 0.0);
-        for _ in 0..PASSES {
-            for ((p, height), total) in points.iter().zip(impulses.iter_mut()) {
-                // Speculative: a point above the plane may close the gap, no more.
-                let allowed = -height.max(0.0) / dt;
-                let approach = (rigid.velocity_at(p) + g * dt).dot(&n);
-                let push = weight * (allowed - approach) / inverse_mass_along(&rigid, *p, n);
-                let j = (*total + push).max(0.0);
-                nudge(&mut rigid, *p, n * (j - *total));
-                *total = j;
-            }
-        }
+        let goals = SequentialImpulses {
+            passes: PASSES,
+            alternate: false,
+            weight,
+            bias: g * dt,
+        };
+        // Speculative: a point above the plane may close the gap, no more.
+        goals.solve(&mut rigid, impulses, |k| {
+            let (p, height) = points[k];
+            (p, n, -height.max(0.0) / dt)
+        });
         for ((p, _), total) in points.iter().zip(impulses.iter()) {
             let v = rigid.velocity_at(p) + g * dt;
             let slide = v - n * v.dot(&n);
