@@ -50,7 +50,10 @@ fn check(report: &serde_json::Value) {
             at("vat_float", "colour") < 0.005,
             "float VAT normals: {row}"
         );
-        assert!(at("vat_8bit", "iou") > 0.995, "8-bit VAT: {row}");
+        // 8-bit offsets step by their range over 255: 1.1 cm for the USD scene's 2.7 m fall,
+        // a few pixels at this camera, so edges may move a pixel or two (the float VAT above
+        // shows the decoding itself is exact).
+        assert!(at("vat_8bit", "iou") > 0.985, "8-bit VAT: {row}");
         assert!(at("vat_8bit", "colour") < 0.02, "8-bit VAT normals: {row}");
         assert!(at("pca", "iou") > 0.995, "pca cache: {row}");
         // The comparison sees motion: later frames do not look like the first.
