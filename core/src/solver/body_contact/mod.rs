@@ -674,11 +674,17 @@ fn hertz_n2(bc: &mut BodyContact, input: &PassInput, a: usize, b: Option<usize>,
     (4.0 / 3.0) * qk / ((d1 + d2) * (2.0 * coefficient).sqrt())
 }
 
-/// `triangles` with every triangle longer than `spacing` split into a barycentric grid of
-/// `n²` triangles (`n = ⌈longest edge / spacing⌉`; corners keep their vertex, new vertices are
+/// Most halvings of one display triangle by [`refine`] (at most 2¹² pieces: a triangle 64
+/// spacings long).
+const MAX_BISECTIONS: u32 = 12;
+
+/// `triangles` with every triangle whose longest edge is over `spacing` halved across that
+/// edge until none is (longest-edge bisection; corners keep their vertex, new vertices are
 /// appended), so the reaction on a face lands on the lattice cells under the contact, not on
-/// the corners of a coarse mesh's big triangles. Triangles with an out-of-range index are
-/// dropped.
+/// the corners of a coarse mesh's big triangles. A thin sliver (a bevel, a rim) is cut along
+/// its length only: a barycentric grid cut it into `n²` slivers (a 1.2 m strip of a
+/// COLLADA-converted box into 576), whose boxes each query then had to test (a box nested in
+/// another took 10 s a frame). Triangles with an out-of-range index are dropped.
 fn refine(
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],
@@ -686,64 +692,38 @@ fn refine(
 ) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
     let mut points = positions.to_vec();
     let mut out = Vec::with_capacity(triangles.len());
-    let mut local = Vec::new();
+    let mut stack: Vec<([u32; 3], u32)> = Vec::new();
     for t in triangles {
         if t.iter().any(|&i| i as usize >= positions.len()) {
             continue;
         }
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-        let n = if spacing > 0.0 && longest.is_finite() {
-            ((longest / spacing).ceil() as usize).clamp(1, 64)
-        } else {
-            1
-        };
-        if n == 1 {
-            out.push(*t);
-            continue;
-        }
-        // Vertex (i, j) at a + (b − a) i/n + (c − a) j/n, i + j ≤ n.
-        local.clear();
-        for i in 0..=n {
-            for j in 0..=n - i {
-                let id = match (i, j) {
-                    (0, 0) => t[0],
-                    (i, 0) if i == n => t[1],
-                    (0, j) if j == n => t[2],
-                    _ => {
-                        let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                        points.push(Point3::from(
-                            a.coords * (1.0 - u - v) + b.coords * u + c.coords * v,
-                        ));
-                        (points.len() - 1) as u32
-                    }
-                };
-                local.push(id);
+        stack.push((*t, 0));
+        while let Some((tri, depth)) = stack.pop() {
+            let p = tri.map(|i| points[i as usize]);
+            let length = |e: usize| (p[(e + 1) % 3] - p[e]).norm();
+            let e = (1..3).fold(0, |best, e| if length(e) > length(best) { e } else { best });
+            // `!(… > spacing)` also stops at a NaN length or spacing.
+            if depth >= MAX_BISECTIONS || !(spacing > 0.0 && length(e) > spacing) {
+                out.push(tri);
+                continue;
             }
-        }
-        for i in 0..n {
-            for j in 0..n - i {
-                let v = |i: usize, j: usize| local[row_start(n, i) + j];
-                out.push([v(i, j), v(i + 1, j), v(i, j + 1)]);
-                if i + j + 1 < n {
-                    out.push([v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)]);
-                }
-            }
+            let (a, b, c) = (tri[e], tri[(e + 1) % 3], tri[(e + 2) % 3]);
+            points.push(Point3::from(
+                (points[a as usize].coords + points[b as usize].coords) * 0.5,
+            ));
+            let m = (points.len() - 1) as u32;
+            // The same winding as (a, b, c); the half at `a` comes out first.
+            stack.push(([m, b, c], depth + 1));
+            stack.push(([a, m, c], depth + 1));
         }
     }
     (points, out)
 }
 
-/// Index of vertex `(i, 0)` in a barycentric grid of order `n` stored row by row.
-fn row_start(n: usize, i: usize) -> usize {
-    // Rows 0..i hold n + 1, n, …, n + 2 − i vertices.
-    i * (n + 1) - i * i.saturating_sub(1) / 2
-}
-
 impl World {
     /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
     /// counter-clockwise from outside) for contact with other bodies: its vertices are
-    /// embedded in `lattice` (the body's own), triangles longer than half a cell refined
+    /// embedded in `lattice` (the body's own), triangles with an edge over half a cell refined
     /// first. The body's contact samples (see [`World::add_contact_surface`]) touch the other
     /// bodies' triangles and the static colliders. Call before stepping. A lattice without
     /// cells (a cage's view) cannot embed: use [`World::add_embedded_collision_surface`].
