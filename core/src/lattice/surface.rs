@@ -82,6 +82,14 @@ pub fn surface_samples(
             }
             continue;
         }
+        if let Some(strip) = sliver_samples(&[a, b, c], area, spacing) {
+            let share = area / strip.len() as f64;
+            for p in strip {
+                points.push(p);
+                areas.push(share);
+            }
+            continue;
+        }
         let count = (n + 1) * (n + 2) / 2;
         for i in 0..=n {
             for j in 0..=n - i {
@@ -98,6 +106,39 @@ pub fn surface_samples(
         areas.push(area);
     }
     (points, areas)
+}
+
+/// Samples of a sliver (a triangle narrower than a quarter of its longest edge: a bevel, a
+/// rim, a COLLADA converter's strip), rows at most `spacing` apart across it, each row's points
+/// at most `spacing` apart along it; `None` for other triangles. The barycentric grid of the
+/// other triangles spaces its rows by the longest edge, so a 1.2 m strip 2 cm wide got 325
+/// samples, 25 on each of its 13 rows, where 26 cover it.
+fn sliver_samples(t: &[Point3<f64>; 3], area: f64, spacing: f64) -> Option<Vec<Point3<f64>>> {
+    let length = |e: usize| (t[(e + 1) % 3] - t[e]).norm();
+    let e = (1..3).fold(0, |best, e| if length(e) > length(best) { e } else { best });
+    let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+    let longest = length(e);
+    let altitude = 2.0 * area / longest;
+    // (A NaN altitude is no sliver either.)
+    if altitude * 4.0 >= longest || altitude.is_nan() {
+        return None;
+    }
+    let rows = (altitude / spacing).ceil().clamp(1.0, 1e6) as usize;
+    let mut out = Vec::new();
+    for j in 0..=rows {
+        let s = j as f64 / rows as f64;
+        let (p0, p1) = (a + (c - a) * s, b + (c - b) * s);
+        let along = ((p1 - p0).norm() / spacing).ceil().clamp(0.0, 1e6) as usize;
+        for i in 0..=along {
+            let u = if along == 0 {
+                0.0
+            } else {
+                i as f64 / along as f64
+            };
+            out.push(p0 + (p1 - p0) * u);
+        }
+    }
+    Some(out)
 }
 
 /// The vertices with an area, one per cube of side `side` (the one nearest the cube's
@@ -224,6 +265,29 @@ mod tests {
         let (points, areas) = surface_samples(&split, &tris, 1.0);
         assert_eq!(points.len(), 8, "one sample per corner");
         assert!((areas.iter().sum::<f64>() - 6.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_sliver_is_sampled_along_its_length_not_across_it() {
+        // A strip 1.2 m long and 2 cm wide, as two triangles.
+        let p = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.2, 0.0, 0.0),
+            Point3::new(1.2, 0.0, 0.02),
+            Point3::new(0.0, 0.0, 0.02),
+        ];
+        let t = [[0u32, 1, 2], [0, 2, 3]];
+        let (points, areas) = surface_samples(&p, &t, 0.05);
+        assert!((areas.iter().sum::<f64>() - 0.024).abs() < 1e-12);
+        assert!(points.len() <= 60, "{} samples", points.len());
+        // Still no point of the strip farther than the spacing from a sample.
+        for k in 0..=120 {
+            for side in [0.0, 0.02] {
+                let q = Point3::new(0.01 * k as f64, 0.0, side);
+                let near = points.iter().any(|s| (s - q).norm() <= 0.05);
+                assert!(near, "no sample near {q}");
+            }
+        }
     }
 
     #[test]
