@@ -198,18 +198,14 @@ fn a_large_output_is_announced_with_its_size_before_the_bake() {
     let grid = dir.path().join("grid.obj");
     std::fs::write(&grid, obj).unwrap();
     let out = dir.path().join("grid.glb");
-    let o = springbake(&[
-        "bake",
-        grid.to_str().unwrap(),
-        "--frames",
-        "120",
-        "--cells",
-        "4",
-        "--max-memory",
-        "50M",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let (grid_arg, out_arg) = (grid.to_str().unwrap(), out.to_str().unwrap());
+    let bake_grid = |frames: &str, extra: &[&str]| {
+        let mut args = vec!["bake", grid_arg, "--frames", frames, "--cells", "4"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", out_arg]);
+        springbake(&args)
+    };
+    let o = bake_grid("120", &["--max-memory", "50M"]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     // 40 401 vertices × 120 frames of morph targets: 117.9 MB when baked.
@@ -219,38 +215,18 @@ fn a_large_output_is_announced_with_its_size_before_the_bake() {
         "{err}"
     );
     // What the message offers works: the lattice as joints, a small file.
-    let skin = springbake(&[
-        "bake",
-        grid.to_str().unwrap(),
-        "--frames",
-        "120",
-        "--cells",
-        "4",
-        "--cache",
-        "skin",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let skin = bake_grid("120", &["--cache", "skin"]);
     assert!(skin.status.success(), "{}", stderr(&skin));
     let size = std::fs::metadata(&out).unwrap().len();
     assert!(size < 10_000_000, "{size} bytes");
-    let bad = springbake(&["bake", grid.to_str().unwrap(), "--cache", "bones"]);
+    let bad = springbake(&["bake", grid_arg, "--cache", "bones"]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(
         stderr(&bad).contains("morph, skin or pca"),
         "{}",
         stderr(&bad)
     );
-    let small = springbake(&[
-        "bake",
-        grid.to_str().unwrap(),
-        "--frames",
-        "2",
-        "--cells",
-        "4",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let small = bake_grid("2", &[]);
     assert!(small.status.success(), "{}", stderr(&small));
     assert!(
         !stderr(&small).contains("will be about"),
