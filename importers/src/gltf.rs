@@ -338,14 +338,20 @@ fn skin_matrices(
     };
     let location = format!("nodes[{}].skin", placed.node);
     let skin = doc.get("skins", skin_index, &location)?;
-    let joints: Vec<usize> = skin["joints"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|j| j.as_u64().map(|j| j as usize))
-                .collect()
-        })
-        .unwrap_or_default();
+    let Some(joint_list) = skin["joints"].as_array() else {
+        // glTF 2.0 requires `joints`; glTF 1.0 named them (`jointNames`), as some old
+        // converters still wrote into files marked 2.0.
+        let why = if skin.get("jointNames").is_some() {
+            "is missing (this skin has glTF 1.0's `jointNames`; re-export the file as glTF 2.0)"
+        } else {
+            "is missing (glTF 2.0 requires it)"
+        };
+        return Err(doc.error(format!("skins[{skin_index}].joints"), why));
+    };
+    let joints: Vec<usize> = joint_list
+        .iter()
+        .filter_map(|j| j.as_u64().map(|j| j as usize))
+        .collect();
     let inverse_binds = match get_usize(skin, "inverseBindMatrices") {
         Some(i) => accessor::read_floats(doc, i, &format!("skins[{skin_index}]"))?.0,
         None => Vec::new(),

@@ -605,3 +605,34 @@ fn a_mesh_moved_by_an_animation_is_named_in_a_note() {
     assert_eq!(animated.len(), 1, "{:?}", scene.notes);
     assert!(animated[0].starts_with("\"Carried\""), "{}", animated[0]);
 }
+
+#[test]
+fn a_skin_without_joints_is_refused_by_its_data_path() {
+    // A glTF 1.0 skin (`jointNames`) in a file marked 2.0, as an old COLLADA2GLTF wrote.
+    let mut bin = f32s(&SQUARE);
+    bin.extend([0u8; 12]);
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    let file = serde_json::to_vec(&json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "skin": 0}],
+        "skins": [{"jointNames": ["a", "b"]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}
+        ],
+        "bufferViews": [{"buffer": 0, "byteLength": 60}],
+        "buffers": [{"byteLength": bin.len(), "uri": uri}],
+    }))
+    .unwrap();
+    let err = import_bytes("old_skin.gltf", &file)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("skins[0].joints") && err.contains("jointNames"),
+        "{err}"
+    );
+}
