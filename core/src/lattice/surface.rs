@@ -152,14 +152,15 @@ fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> V
             nalgebra::Vector3::zeros()
         }
     };
-    // Per cluster, in order of its first vertex: area, area-weighted sum of positions.
+    // Per cluster, in order of its first vertex: area, area-weighted sum of positions, first
+    // vertex (kept where no distance compares, e.g. an overflowing sum).
     let mut cluster_of = std::collections::HashMap::new();
-    let mut clusters: Vec<(f64, nalgebra::Vector3<f64>)> = Vec::new();
+    let mut clusters: Vec<(f64, nalgebra::Vector3<f64>, usize)> = Vec::new();
     let mut member = vec![usize::MAX; positions.len()];
     for (i, &area) in vertex_area.iter().enumerate() {
         if area > 0.0 && positions[i].coords.iter().all(|c| c.is_finite()) {
             let c = *cluster_of.entry(key(&positions[i])).or_insert_with(|| {
-                clusters.push((0.0, nalgebra::Vector3::zeros()));
+                clusters.push((0.0, nalgebra::Vector3::zeros(), i));
                 clusters.len() - 1
             });
             clusters[c].0 += area;
@@ -167,7 +168,7 @@ fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> V
             member[i] = c;
         }
     }
-    let mut nearest = vec![(f64::INFINITY, usize::MAX); clusters.len()];
+    let mut nearest: Vec<(f64, usize)> = clusters.iter().map(|c| (f64::INFINITY, c.2)).collect();
     for (i, &c) in member.iter().enumerate() {
         if c != usize::MAX {
             let centre = clusters[c].1 / clusters[c].0;
@@ -180,7 +181,7 @@ fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> V
     nearest
         .iter()
         .zip(&clusters)
-        .map(|(&(_, vertex), &(area, _))| (vertex, area))
+        .map(|(&(_, vertex), &(area, _, _))| (vertex, area))
         .collect()
 }
 
