@@ -381,8 +381,8 @@ pub struct MeshOverrides {
 }
 
 impl MeshOverrides {
-    /// The command line's `output` (relative to `folder`), `frames` and `fps` over a scene's
-    /// own `[output]`.
+    /// The command line's `output` (relative to `folder`), `frames`, `fps`, `cache` and
+    /// `device` over a scene's own `[output]` and `[solver]`.
     pub fn apply_to(&self, scene: &mut SceneFile, folder: &Path) {
         let output = &mut scene.output;
         if let Some(o) = &self.output {
@@ -398,7 +398,7 @@ impl MeshOverrides {
             scene.solver.device = d;
         }
         if let Some(c) = self.cache {
-            scene.output.cache = c;
+            output.cache = c;
         }
     }
 }
@@ -412,20 +412,10 @@ pub const DEFAULT_MESH_FRAMES: usize = 72;
 pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
     let mut scene = SceneFile::default();
     let stem = mesh.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh");
-    scene.output.path = o
-        .output
-        .clone()
-        .unwrap_or_else(|| mesh.with_file_name(format!("{stem}.baked.glb")));
-    scene.output.frames = o.frames.unwrap_or(DEFAULT_MESH_FRAMES);
-    if let Some(fps) = o.fps {
-        scene.output.fps = fps;
-    }
-    if let Some(device) = o.device {
-        scene.solver.device = device;
-    }
-    if let Some(cache) = o.cache {
-        scene.output.cache = cache;
-    }
+    scene.output.path = mesh.with_file_name(format!("{stem}.baked.glb"));
+    scene.output.frames = DEFAULT_MESH_FRAMES;
+    // The command line's settings over these defaults (an `-o` path as given).
+    o.apply_to(&mut scene, Path::new(""));
     scene.world.floor = Some(f64::NAN); // "automatic": resolved against the mesh in `prepare`
     scene.body.push(BodySection {
         cells: Some(o.cells.unwrap_or(springbake_core::scene::DEFAULT_CELLS)),
