@@ -599,3 +599,43 @@ fn a_body_that_starts_through_the_floor_is_named_before_the_bake() {
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("through the floor"), "{err}");
 }
+
+/// Two cubes of one OBJ sunk a quarter of a metre into each other are named before the bake
+/// as glued (they would otherwise be thrown apart); two a centimetre apart are not.
+#[test]
+fn parts_that_interpenetrate_are_named_as_glued_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let two_cubes = |second_x: f64| {
+        let mut obj = String::new();
+        for (i, x0) in [0.0, second_x].into_iter().enumerate() {
+            obj += &format!("o part{i}\n");
+            for c in 0..8 {
+                let [x, y, z] = [c & 1, (c >> 1) & 1, (c >> 2) & 1].map(|b| 0.5 * b as f64);
+                obj += &format!("v {} {} {}\n", x0 + x, y + 0.3, z);
+            }
+            let b = 8 * i + 1;
+            for f in [
+                [0, 2, 3, 1],
+                [4, 5, 7, 6],
+                [0, 1, 5, 4],
+                [2, 6, 7, 3],
+                [0, 4, 6, 2],
+                [1, 3, 7, 5],
+            ] {
+                obj += &format!("f {} {} {} {}\n", b + f[0], b + f[1], b + f[2], b + f[3]);
+            }
+        }
+        obj
+    };
+    for (second_x, glued) in [(0.25, true), (0.51, false)] {
+        std::fs::write(dir.path().join("two.obj"), two_cubes(second_x)).unwrap();
+        let args = [
+            "bake", "two.obj", "--cells", "4", "--frames", "2", "-o", "two.pc2",
+        ];
+        let o = support::springbake_in(dir.path(), &args);
+        let err = stderr(&o);
+        assert!(o.status.success(), "{err}");
+        let named = err.contains("bodies \"part0\" and \"part1\" interpenetrate at the start");
+        assert_eq!(named, glued, "second cube at x = {second_x}: {err}");
+    }
+}

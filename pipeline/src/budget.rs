@@ -210,6 +210,24 @@ pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
         .collect()
 }
 
+/// Parts that interpenetrate at the start deeper than the contact layer reaches are glued
+/// where they overlap and stop colliding with each other (the XPBD solver's glue): name them,
+/// so a user who meant them to collide knows to move them apart.
+pub fn glued_parts_notes(prepared: &mut Prepared) -> Vec<String> {
+    prepared
+        .world
+        .glued_parts()
+        .into_iter()
+        .map(|(a, b)| {
+            format!(
+                "bodies \"{a}\" and \"{b}\" interpenetrate at the start: they are glued where \
+                 they overlap and do not collide with each other (move them apart to make them \
+                 collide)"
+            )
+        })
+        .collect()
+}
+
 /// A body whose display mesh starts more than half a cell through the floor or a wall is
 /// thrown out of it at the first substeps (its lattice stores the push as strain and gives
 /// it back as speed): say so, with the depth and what to change, before the bake.

@@ -612,6 +612,9 @@ pub fn bake(
         for text in budget::small_body_notes(&prepared) {
             note(&text);
         }
+        for text in budget::glued_parts_notes(&mut prepared) {
+            note(&text);
+        }
     }
     budget::check_memory(
         &prepared,

@@ -182,7 +182,7 @@ fn span(v: [f64; 3]) -> (f64, f64) {
 
 /// Where the vertical line through `(x, y)` crosses triangle `p`: its height and the sign of
 /// the triangle's normal's z (0-area triangles in xy are not crossed).
-fn vertical_crossing(p: [Vector3<f64>; 3], x: f64, y: f64) -> Option<(f64, i32)> {
+pub(crate) fn vertical_crossing(p: [Vector3<f64>; 3], x: f64, y: f64) -> Option<(f64, i32)> {
     let edge = |a: Vector3<f64>, b: Vector3<f64>| (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
     let (w0, w1, w2) = (edge(p[1], p[2]), edge(p[2], p[0]), edge(p[0], p[1]));
     let all_pos = w0 > 0.0 && w1 > 0.0 && w2 > 0.0;

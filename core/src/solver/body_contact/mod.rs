@@ -155,6 +155,7 @@ struct Contact {
 }
 
 mod detect;
+pub(crate) mod overlap;
 use detect::*;
 
 /// The contact pass's state: meshes, colliders, the model, the force it leaves for the node

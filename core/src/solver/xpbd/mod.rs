@@ -25,6 +25,7 @@
 
 mod cells;
 mod contact;
+mod glue;
 mod lanes;
 mod restitution;
 
@@ -37,6 +38,7 @@ use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet, PointGroups};
 use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
+use glue::Glue;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use restitution::Restitution;
@@ -121,6 +123,8 @@ pub(crate) struct Model {
     logged_once: bool,
     /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
     restitution: Restitution,
+    /// Parts that interpenetrate at the start, glued where they overlap (`glue`).
+    glue: Glue,
 }
 
 /// A display-surface point as the contact pass reads it (`World::surface`'s records).
@@ -159,12 +163,19 @@ impl Model {
         &self.moved
     }
 
-    pub(crate) fn build(world: &World) -> Model {
-        let n = world.nodes.len();
-        let mut kept: Vec<u32> = (0..n as u32).collect();
-        for shared in &world.joints {
-            kept[shared.follower] = super::joints::resolve(world, shared.kept) as u32;
+    /// The model of `world`'s bodies as they are now; parts that interpenetrate are glued
+    /// (and stop colliding with each other) here, once.
+    pub(crate) fn build(world: &mut World) -> Model {
+        let kept = kept_nodes(world);
+        let glue = Glue::build(world, &kept);
+        Model {
+            glue,
+            ..Model::build_solids(world, &kept)
         }
+    }
+
+    fn build_solids(world: &World, kept: &[u32]) -> Model {
+        let n = world.nodes.len();
         let mut cells = CellSet::default();
         let mut springs = Vec::new();
         for (b, body) in world.bodies.iter().enumerate() {
@@ -231,6 +242,7 @@ impl Model {
             collider_touch: vec![None; world.surface.len()],
             logged_once: false,
             restitution: Restitution::build(world),
+            glue: Glue::default(),
         }
     }
 
@@ -249,6 +261,9 @@ impl Model {
     > {
         if !self.springs.is_empty() {
             return Err("bodies made of springs only (cages without cells)".into());
+        }
+        if !self.glue.is_empty() {
+            return Err("parts glued where they interpenetrate at the start".into());
         }
         if !self.cells.all_coloured_cubes() {
             return Err("cells that are not lattice cubes (cages, sheared lattices)".into());
@@ -298,6 +313,34 @@ impl Model {
             .sum();
         self.cells.energy(x) + springs
     }
+}
+
+impl World {
+    /// The bodies glued where they interpenetrate at the start, by name (`glue`; the XPBD
+    /// solver only: the papers' integrators leave such parts to the contact layer). Builds
+    /// the solver's model if no step has yet.
+    pub fn glued_parts(&mut self) -> Vec<(String, String)> {
+        if self.settings.integrator != super::Integrator::Xpbd {
+            return Vec::new();
+        }
+        if self.xpbd.is_none() {
+            self.xpbd = Some(Model::build(self));
+        }
+        let pairs = self.xpbd.as_ref().map_or(&[][..], |m| m.glue.pairs());
+        pairs
+            .iter()
+            .map(|&(a, b)| (self.bodies[a].name.clone(), self.bodies[b].name.clone()))
+            .collect()
+    }
+}
+
+/// Per node, the node that stands for it in the solve (a joint's follower: its kept node).
+fn kept_nodes(world: &World) -> Vec<u32> {
+    let mut kept: Vec<u32> = (0..world.nodes.len() as u32).collect();
+    for shared in &world.joints {
+        kept[shared.follower] = super::joints::resolve(world, shared.kept) as u32;
+    }
+    kept
 }
 
 /// Substeps for an output frame of `frame_dt` seconds (at least [`MIN_SUBSTEP_RATE`] a
@@ -446,6 +489,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         .solve(&mut world.nodes.position, &model.inv_mass, dt);
     solve_springs(world, &model, dt);
     cancel_internal_torque(world, &mut model);
+    model.glue.solve(&mut world.nodes.position, &model.inv_mass);
     let out = rigid_contacts(world, &mut model, time, dt);
     if out.touched {
         let (w, moved) = (&model.inv_mass, &model.moved);
