@@ -127,4 +127,6 @@ pub(crate) struct FrameAccumulator {
     pub newmark_cap_hits: u32,
     /// Work of the manipulators on the bodies, J (XPBD steps).
     pub manipulator_work: f64,
+    /// Work of separating parts that start in contact, J (XPBD steps).
+    pub separation_work: f64,
 }

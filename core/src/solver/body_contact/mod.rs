@@ -111,7 +111,7 @@ impl BodyMesh {
 
 /// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
 /// in the step: deeper, the layer has already failed; the search reaches this far.
-const BEHIND_LAYERS: f64 = 1.0;
+pub(crate) const BEHIND_LAYERS: f64 = 1.0;
 
 /// An edge–edge contact stands for a whole cell face (the layer's stiffness per node): two
 /// crossed edges carry their load at one point, where a face carries it over its samples.

@@ -375,7 +375,9 @@ impl World {
             && self.fields.is_empty()
             && (self.settings.integrator == Integrator::Xpbd || !manipulated);
         let total = kinetic + elastic + gravity;
-        let budget = self.energy_budget.map_or(total, |b| b.max(total)) + acc.manipulator_work;
+        let budget = self.energy_budget.map_or(total, |b| b.max(total))
+            + acc.manipulator_work
+            + acc.separation_work;
         self.energy_budget = Some(budget);
         let mass: f64 = self.nodes.mass.iter().sum();
         let slack = 0.5 * mass * super::xpbd::MAX_SEPARATION_SPEED.powi(2)

@@ -94,9 +94,16 @@ pub(crate) struct Model {
     predicted: Vec<V3>,
     /// Per node: the body contacts' push beyond [`MAX_SEPARATION_SPEED`] this substep, m.
     shift: Vec<V3>,
-    /// Per node: in a body contact since the model was built (parts that start touching or
-    /// overlapping); cleared for good at the first substep the node is free.
+    /// Per node: in a body contact at the first substep (parts that start touching or
+    /// overlapping), until `separated_by` (a node free for a substep in between, as the parts
+    /// part, must not meet its partner's layer again at full push).
     overlapping: Vec<bool>,
+    /// Whether a substep has predicted since the model was built.
+    predicted_once: bool,
+    /// Simulated time by which parts that start within each other's layers have separated
+    /// at [`MAX_SEPARATION_SPEED`] (a layer thickness; deeper overlaps are glued), s; `None`
+    /// once passed.
+    separated_by: Option<f64>,
     inv_mass: Vec<f64>,
     /// Per node: moved by a rigid contact this substep.
     moved: Vec<bool>,
@@ -145,6 +152,8 @@ pub(crate) struct StepOutput {
     pub touched: bool,
     /// Work of the capsules on the bodies in this step, J.
     pub capsule_work: f64,
+    /// Work of separating parts that start in contact (`shift_bodies`) in this step, J.
+    pub separation_work: f64,
 }
 
 impl Model {
@@ -229,6 +238,12 @@ impl Model {
             predicted: vec![V3::zeros(); n],
             shift: vec![V3::zeros(); n],
             overlapping: vec![true; n],
+            predicted_once: false,
+            separated_by: Some(
+                world.time
+                    + super::body_contact::BEHIND_LAYERS * world.settings.layer.thickness_m
+                        / MAX_SEPARATION_SPEED,
+            ),
             inv_mass: vec![0.0; n],
             moved: vec![false; n],
             contact_shift: vec![V3::zeros(); n],
@@ -454,6 +469,7 @@ impl Integrate for SmallStepXpbd {
     fn substep(&self, world: &mut World, dt: f64, acc: &mut FrameAccumulator) -> StepStats {
         let out = step(world, dt);
         acc.manipulator_work += out.capsule_work;
+        acc.separation_work += out.separation_work;
         acc.max_depth = acc.max_depth.max(out.max_depth);
         acc.steps += 1;
         if !world.manipulators.is_empty() || !world.live_capsules.is_empty() {
@@ -481,7 +497,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         .before(world, dt, model.shortest_edge, touch);
     push_by_fields(world, dt);
     predict(world, &mut model, dt);
-    shift_bodies(world, &mut model);
+    let separation_work = shift_bodies(world, &mut model);
     bind_paths(world, &mut model, time + dt);
     model.predicted.copy_from_slice(&world.nodes.position);
     model
@@ -504,7 +520,10 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     damp_deformation(world, &mut model, dt);
     world.time += dt;
     world.xpbd = Some(model);
-    out
+    StepOutput {
+        separation_work,
+        ..out
+    }
 }
 
 /// Stage 0: the substep's contact log and the body–body / collider layer forces (at the
@@ -543,6 +562,11 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
     let layer_k = world.settings.layer.stiffness;
     let bc = &world.body_contact;
     let body_force = bc.active.then_some(&bc.force[..]);
+    if model.separated_by.is_some_and(|t| world.time >= t) {
+        model.overlapping.fill(false);
+        model.separated_by = None;
+    }
+    let first = !std::mem::replace(&mut model.predicted_once, true);
     let nodes = &mut world.nodes;
     let mass = &nodes.mass[..];
     model.inv_mass.copy_from_slice(&nodes.inv_mass);
@@ -570,7 +594,7 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
                 if let Some(bf) = body_force {
                     let kick = bf[i] * (dt / (m + layer_k * dt * dt));
                     if bf[i] == V3::zeros() {
-                        overlapping[j] = false;
+                        overlapping[j] &= !first;
                     } else if overlapping[j] {
                         let moving = contact_kick(kick, vs[j]);
                         vs[j] += moving;
@@ -579,7 +603,7 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
                         vs[j] += kick;
                     }
                 } else {
-                    overlapping[j] = false;
+                    overlapping[j] &= !first;
                 }
                 xs[j] += vs[j] * dt;
             }
@@ -610,11 +634,16 @@ fn contact_kick(kick: V3, v: V3) -> V3 {
 /// Stage 1b: the part of the body contacts' push beyond [`MAX_SEPARATION_SPEED`] moves each
 /// body as a whole (its mass-weighted mean, on positions and the substep's start alike), so it
 /// separates bodies that start inside each other's layers without speeding them or stretching
-/// them (which would turn into speed).
-fn shift_bodies(world: &mut World, model: &mut Model) {
+/// them (which would turn into speed), and not into a plane the body is within a cell of.
+/// Returns the work of gravity it undid, J (a stack of
+/// boxes that starts a centimetre apart is lifted apart: the energy balance counts it as
+/// work done on the bodies).
+fn shift_bodies(world: &mut World, model: &mut Model) -> f64 {
+    let mut work = 0.0;
     if !world.body_contact.active {
-        return;
+        return work;
     }
+    let gravity = world.settings.gravity;
     let nodes = &mut world.nodes;
     for body in &world.bodies {
         let (mut moment, mut mass) = (V3::zeros(), 0.0);
@@ -626,7 +655,20 @@ fn shift_bodies(world: &mut World, model: &mut Model) {
         if mass <= 0.0 || moment == V3::zeros() {
             continue;
         }
-        let shift = moment / mass;
+        let mut shift = moment / mass;
+        // Not into a floor or wall the body rests on: the plane would put it back and the
+        // put-back would be speed (a stack of boxes touching at the start jumped at 1 m/s).
+        for plane in &world.settings.planes {
+            let into = shift.dot(&plane.normal);
+            let near = body
+                .nodes
+                .clone()
+                .any(|i| nodes.position[i].dot(&plane.normal) - plane.offset < model.shortest_edge);
+            if into < 0.0 && near {
+                shift -= plane.normal * into;
+            }
+        }
+        work -= mass * gravity.dot(&shift);
         for i in body.nodes.clone() {
             if model.inv_mass[i] > 0.0 {
                 nodes.position[i] += shift;
@@ -634,6 +676,7 @@ fn shift_bodies(world: &mut World, model: &mut Model) {
             }
         }
     }
+    work
 }
 
 /// Stage 2: nodes bound to paths go to their targets at `t`; exact ones stop moving in the
