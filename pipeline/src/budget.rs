@@ -210,19 +210,23 @@ pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
         .collect()
 }
 
-/// Parts that interpenetrate at the start deeper than the contact layer reaches are glued
-/// where they overlap and stop colliding with each other (the XPBD solver's glue): name them,
-/// so a user who meant them to collide knows to move them apart.
-pub fn glued_parts_notes(prepared: &mut Prepared) -> Vec<String> {
+/// Parts that interpenetrate at the start deeper than the contact layer reaches stop
+/// colliding with each other, and flexible ones are glued where they overlap (the XPBD
+/// solver's glue): name them, so a user who meant them to collide knows to move them apart.
+pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
     prepared
         .world
-        .glued_parts()
+        .interpenetrating_parts()
         .into_iter()
-        .map(|(a, b)| {
+        .map(|(a, b, glued)| {
+            let what = if glued {
+                "they are glued where they overlap and do not collide with each other"
+            } else {
+                "they do not collide with each other; a rigid or particle body is not glued"
+            };
             format!(
-                "bodies \"{a}\" and \"{b}\" interpenetrate at the start: they are glued where \
-                 they overlap and do not collide with each other (move them apart to make them \
-                 collide)"
+                "bodies \"{a}\" and \"{b}\" interpenetrate at the start: {what} (move them \
+                 apart to make them collide)"
             )
         })
         .collect()

@@ -612,7 +612,7 @@ pub fn bake(
         for text in budget::small_body_notes(&prepared) {
             note(&text);
         }
-        for text in budget::glued_parts_notes(&mut prepared) {
+        for text in budget::interpenetrating_parts_notes(&mut prepared) {
             note(&text);
         }
     }

@@ -114,8 +114,8 @@ pub(crate) struct StartOverlaps {
 }
 
 /// The body pairs of `world` whose display meshes overlap deeper than the contact layer at
-/// rest (module docs), among the bodies with a collision mesh and `eligible(body)`.
-pub(crate) fn start_overlaps(world: &World, eligible: impl Fn(usize) -> bool) -> StartOverlaps {
+/// rest (module docs), among the bodies with a collision mesh.
+pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     let bc = &world.body_contact;
     let depth = BEHIND_LAYERS * world.settings.layer.thickness_m;
     let mut solids: Vec<Option<Solid>> = (0..world.bodies.len()).map(|_| None).collect();
@@ -123,7 +123,7 @@ pub(crate) fn start_overlaps(world: &World, eligible: impl Fn(usize) -> bool) ->
     if bc.meshes.len() < 2 || depth.is_nan() || depth <= 0.0 {
         return StartOverlaps { pairs, solids };
     }
-    let meshes: Vec<&BodyMesh> = bc.meshes.iter().filter(|m| eligible(m.body)).collect();
+    let meshes: Vec<&BodyMesh> = bc.meshes.iter().collect();
     let rest = |ids: &[u32; 8], w: &[f64; 8]| -> V3 {
         (0..8).map(|c| world.rest[ids[c] as usize] * w[c]).sum()
     };

@@ -33,23 +33,30 @@ struct Attachment {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct Glue {
     attachments: Vec<Attachment>,
-    /// The glued body pairs `(lower, higher)`.
-    pairs: Vec<(usize, usize)>,
+    /// The body pairs `(lower, higher)` that interpenetrate at the start, and whether they are
+    /// glued (else they only ignore each other).
+    pairs: Vec<((usize, usize), bool)>,
 }
 
 impl Glue {
-    /// Find the pairs of `world`'s lattice bodies that interpenetrate at rest, make them
-    /// ignore each other in the contact pass, and attach their overlapping nodes; `kept`
-    /// resolves joint followers to the node that stands for them.
+    /// Find the pairs of `world`'s bodies that interpenetrate at rest, make them ignore each
+    /// other in the contact pass, and attach the overlapping nodes of the pairs of flexible
+    /// lattice bodies (a rigid or particle body is only kept from colliding); `kept` resolves
+    /// joint followers to the node that stands for them.
     pub(crate) fn build(world: &mut World, kept: &[u32]) -> Glue {
-        let eligible = |b: usize| {
+        let flexible = |b: usize| {
             !world.rigid.iter().any(|r| r.body == b)
                 && world.bodies[b].material.is_some()
                 && !world.bodies[b].cells.is_empty()
         };
-        let StartOverlaps { pairs, mut solids } = start_overlaps(world, eligible);
+        let StartOverlaps { pairs, mut solids } = start_overlaps(world);
         let mut attachments = Vec::new();
+        let mut glued = Vec::new();
         for &(a, b) in &pairs {
+            glued.push(flexible(a) && flexible(b));
+            if !(flexible(a) && flexible(b)) {
+                continue;
+            }
             for (from, to) in [(a, b), (b, a)] {
                 let Some(solid) = solids[to].as_mut() else {
                     continue;
@@ -75,6 +82,7 @@ impl Glue {
                 world.body_contact.ignored_pairs.push(pair);
             }
         }
+        let pairs = pairs.into_iter().zip(glued).collect();
         Glue { attachments, pairs }
     }
 
@@ -82,8 +90,9 @@ impl Glue {
         self.attachments.is_empty()
     }
 
-    /// The glued body pairs `(lower, higher)`.
-    pub(crate) fn pairs(&self) -> &[(usize, usize)] {
+    /// The body pairs `(lower, higher)` that interpenetrate at the start, and whether they
+    /// are glued.
+    pub(crate) fn pairs(&self) -> &[((usize, usize), bool)] {
         &self.pairs
     }
 

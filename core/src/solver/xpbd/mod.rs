@@ -331,10 +331,11 @@ impl Model {
 }
 
 impl World {
-    /// The bodies glued where they interpenetrate at the start, by name (`glue`; the XPBD
-    /// solver only: the papers' integrators leave such parts to the contact layer). Builds
-    /// the solver's model if no step has yet.
-    pub fn glued_parts(&mut self) -> Vec<(String, String)> {
+    /// The bodies that interpenetrate at the start, by name, and whether they are glued where
+    /// they overlap (flexible bodies) or only kept from colliding (a rigid or particle body
+    /// among them); `glue` (the XPBD solver only: the papers' integrators leave such parts to
+    /// the contact layer). Builds the solver's model if no step has yet.
+    pub fn interpenetrating_parts(&mut self) -> Vec<(String, String, bool)> {
         if self.settings.integrator != super::Integrator::Xpbd {
             return Vec::new();
         }
@@ -344,7 +345,10 @@ impl World {
         let pairs = self.xpbd.as_ref().map_or(&[][..], |m| m.glue.pairs());
         pairs
             .iter()
-            .map(|&(a, b)| (self.bodies[a].name.clone(), self.bodies[b].name.clone()))
+            .map(|&((a, b), glued)| {
+                let name = |i: usize| self.bodies[i].name.clone();
+                (name(a), name(b), glued)
+            })
             .collect()
     }
 }
