@@ -46,10 +46,64 @@ fn swept_sample(
     ])
 }
 
-/// The best face contact of a point at `x` moving at `v` against triangles `candidates` with
-/// corners from `corners(t)`, velocities `vel(t)` (at barycentric weights) and normals: a
-/// crossing of the segment from the previous position first, else the nearest face within the
-/// layer, or one the point lies just behind (at most `behind` deep).
+/// The triangles a point can meet, as [`best_face`] reads them.
+trait Faces {
+    /// The corners of triangle `t`.
+    fn corners(&self, t: usize) -> [Vector3<f64>; 3];
+    /// Its box (the corners' bounds).
+    fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>);
+    /// Its unit normal ([`triangle_normal`]; zero for a degenerate triangle).
+    fn normal(&self, t: usize) -> Vector3<f64>;
+    /// The velocity of its point at barycentric weights `w`.
+    fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64>;
+}
+
+/// A body's display triangles in the step, with the boxes and normals of those inside the
+/// pair's overlap computed once per step (each is a candidate of many samples).
+struct MeshFaces<'a> {
+    mesh: &'a BodyMesh,
+    /// Per triangle: box and normal (normals only for triangles whose box meets the overlap).
+    table: &'a [(Vector3<f64>, Vector3<f64>, Vector3<f64>)],
+}
+
+impl Faces for MeshFaces<'_> {
+    fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+        self.mesh.corners(t)
+    }
+    fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>) {
+        (self.table[t].0, self.table[t].1)
+    }
+    fn normal(&self, t: usize) -> Vector3<f64> {
+        self.table[t].2
+    }
+    fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64> {
+        let tri = self.mesh.triangles[t];
+        (0..3).map(|k| self.mesh.v[tri[k] as usize] * w[k]).sum()
+    }
+}
+
+/// A static collider's triangles (normals computed when it was built; it does not move).
+struct ColliderFaces<'a>(&'a StaticCollider);
+
+impl Faces for ColliderFaces<'_> {
+    fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+        self.0.corners(t)
+    }
+    fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>) {
+        let [a, b, c] = self.0.corners(t);
+        (a.inf(&b).inf(&c), a.sup(&b).sup(&c))
+    }
+    fn normal(&self, t: usize) -> Vector3<f64> {
+        self.0.normals[t]
+    }
+    fn velocity(&self, _: usize, _: [f64; 3]) -> Vector3<f64> {
+        Vector3::zeros()
+    }
+}
+
+/// The best face contact of a point at `x` moving at `v` against triangles `candidates` of
+/// `faces`: a crossing of the segment from the previous position first, else the nearest face
+/// within the layer, or one the point lies just behind (at most `behind` deep).
 #[allow(clippy::too_many_arguments)]
 fn best_face(
     x: Vector3<f64>,
@@ -58,8 +112,7 @@ fn best_face(
     h: f64,
     behind: f64,
     candidates: &[u32],
-    corners: &dyn Fn(usize) -> [Vector3<f64>; 3],
-    velocity: &dyn Fn(usize, [f64; 3]) -> Vector3<f64>,
+    faces: &impl Faces,
 ) -> Option<FaceHit> {
     // (segment parameter or distance, hit)
     let mut crossing: Option<(f64, FaceHit)> = None;
@@ -71,19 +124,19 @@ fn best_face(
     );
     for &t in candidates {
         let t = t as usize;
-        let [a, b, c] = corners(t);
         // Cheap reject: the triangle's box misses the point's reach (grid cells are coarser).
-        let (tlo, thi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
+        let (tlo, thi) = faces.bounds(t);
         if (0..3).any(|k| tlo[k] > qhi[k] || thi[k] < qlo[k]) {
             continue;
         }
-        let n = triangle_normal(&a, &b, &c);
+        let n = faces.normal(t);
         if n == Vector3::zeros() {
             continue;
         }
+        let [a, b, c] = faces.corners(t);
         let (bary, interior) = closest_on_triangle(&x, &a, &b, &c);
         let q = a * bary[0] + b * bary[1] + c * bary[2];
-        let vq = velocity(t, bary);
+        let vq = faces.velocity(t, bary);
         let rel = v - vq;
         let s_now = (x - a).dot(&n);
         let prev = x - rel * dt;
@@ -95,7 +148,7 @@ fn best_face(
                         bary: w,
                         normal: n,
                         depth: h - s_now,
-                        velocity: velocity(t, w),
+                        velocity: faces.velocity(t, w),
                     };
                     crossing = Some((u, hit));
                 }
@@ -162,31 +215,42 @@ pub(super) fn detect_pair(
     let stamp = bc.step;
     bc.meshes[mb].update(input.nodes, stamp);
     let mesh = &bc.meshes[mb];
+    bc.faces.clear();
+    bc.faces.extend((0..mesh.triangles.len()).map(|t| {
+        let [p, q, r] = mesh.corners(t);
+        let (tlo, thi) = (p.inf(&q).inf(&r), p.sup(&q).sup(&r));
+        let inside = (0..3).all(|k| tlo[k] <= hi[k] && thi[k] >= lo[k]);
+        let normal = if inside {
+            triangle_normal(&p, &q, &r)
+        } else {
+            Vector3::zeros()
+        };
+        (tlo, thi, normal)
+    }));
     bc.grid.build(
         lo,
         hi,
         mesh.mean_edge,
         mesh.triangles.len(),
-        (0..mesh.triangles.len()).map(|t| {
-            let [p, q, r] = mesh.corners(t);
-            (t as u32, p.inf(&q).inf(&r), p.sup(&q).sup(&r))
-        }),
+        bc.faces
+            .iter()
+            .enumerate()
+            .map(|(t, &(tlo, thi, _))| (t as u32, tlo, thi)),
     );
     if bc.grid.is_empty() {
         return;
     }
     let behind = BEHIND_LAYERS * h;
-    let corners = |t: usize| mesh.corners(t);
-    let velocity = |t: usize, w: [f64; 3]| {
-        let tri = mesh.triangles[t];
-        (0..3).map(|k| mesh.v[tri[k] as usize] * w[k]).sum()
+    let faces = MeshFaces {
+        mesh,
+        table: &bc.faces,
     };
     for i in bc.points[a].clone() {
         let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
             continue;
         };
         bc.grid.query(&qlo, &qhi, &mut bc.candidates);
-        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &velocity) {
+        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &faces) {
             bc.contacts.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Face {
@@ -332,10 +396,8 @@ pub(super) fn detect_collider(
             continue;
         };
         col.grid.query(&qlo, &qhi, &mut bc.candidates);
-        let col = &*col;
-        let corners = |t: usize| col.corners(t);
-        let still = |_: usize, _: [f64; 3]| Vector3::zeros();
-        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &corners, &still) {
+        let faces = ColliderFaces(col);
+        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &faces) {
             bc.contacts.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Static,

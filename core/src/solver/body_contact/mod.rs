@@ -190,6 +190,8 @@ pub struct BodyContact {
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
+    /// Per triangle of the mesh a pair's samples meet: box and normal (scratch).
+    faces: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
 }
 
 impl BodyContact {
