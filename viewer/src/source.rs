@@ -39,8 +39,12 @@ pub struct Simulation {
 impl Simulation {
     /// Import, fit and build the world for `loaded`.
     pub fn new(registry: &Registry, loaded: LoadedScene) -> Result<Simulation, ViewerError> {
-        let prepared = springbake_pipeline::prepare(registry, &loaded, &mut Seconds::default())?;
+        let mut prepared =
+            springbake_pipeline::prepare(registry, &loaded, &mut Seconds::default())?;
         eprintln!("springbake: note: {}", prepared.device.describe());
+        for text in springbake_pipeline::budget::interpenetrating_parts_notes(&mut prepared) {
+            eprintln!("springbake: note: {text}");
+        }
         let triangles = prepared
             .bodies
             .iter()
