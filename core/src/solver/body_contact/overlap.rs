@@ -151,6 +151,11 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
             list.push(rest(&surface.nodes[i], &surface.weights[i]));
         }
     }
+    let solid_of = |m: usize| {
+        let v = &vertices[m];
+        let corners = meshes[m].display.iter().map(|t| t.map(|k| v[k as usize]));
+        Solid::new(corners.collect(), meshes[m].cell)
+    };
     for i in 0..meshes.len() {
         for j in i + 1..meshes.len() {
             let (a, b) = (
@@ -167,12 +172,7 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                 if deep {
                     break;
                 }
-                let solid = solids[meshes[to].body].get_or_insert_with(|| {
-                    let m = meshes[to];
-                    let v = &vertices[to];
-                    let corners = m.display.iter().map(|t| t.map(|k| v[k as usize]));
-                    Solid::new(corners.collect(), m.cell)
-                });
+                let solid = solids[meshes[to].body].get_or_insert_with(|| solid_of(to));
                 deep = samples[meshes[from].body].iter().any(|p| {
                     (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
                         && solid.contains(p)
@@ -181,6 +181,10 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
             }
             if deep {
                 pairs.push((a, b));
+                // Both sides' solids: the glue attaches each side's nodes inside the other.
+                for m in [i, j] {
+                    solids[meshes[m].body].get_or_insert_with(|| solid_of(m));
+                }
             }
         }
     }

@@ -11,7 +11,8 @@
 //!    do not move in the solve);
 //! 3. **elastic solve**: the cells' volumetric constraints ([`cells`]) colour by colour, then
 //!    the springs of bodies without cells (cages built of springs only) as distance
-//!    constraints with compliance `1/k`;
+//!    constraints with compliance `1/k`; after the internal-torque cancellation, the
+//!    attachments of parts that interpenetrate at the start ([`glue`]);
 //! 4. **rigid contact**: nodes and display-surface points below the floor, the walls or
 //!    inside a capsule, and display-surface points that entered a static collider, are
 //!    projected out with Coulomb friction ([`contact`]);
