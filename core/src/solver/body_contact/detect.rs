@@ -58,27 +58,22 @@ trait Faces {
     fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64>;
 }
 
-/// A body's display triangles in the step, with the boxes and normals of those inside the
-/// pair's overlap computed once per step (each is a candidate of many samples).
-struct MeshFaces<'a> {
-    mesh: &'a BodyMesh,
-    /// Per triangle: box and normal (normals only for triangles whose box meets the overlap).
-    table: &'a [(Vector3<f64>, Vector3<f64>, Vector3<f64>)],
-}
+/// A body's display triangles in the step (boxes and normals from [`BodyMesh::update`]).
+struct MeshFaces<'a>(&'a BodyMesh);
 
 impl Faces for MeshFaces<'_> {
     fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
-        self.mesh.corners(t)
+        self.0.corners(t)
     }
     fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>) {
-        (self.table[t].0, self.table[t].1)
+        (self.0.faces[t].0, self.0.faces[t].1)
     }
     fn normal(&self, t: usize) -> Vector3<f64> {
-        self.table[t].2
+        self.0.faces[t].2
     }
     fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64> {
-        let tri = self.mesh.triangles[t];
-        (0..3).map(|k| self.mesh.v[tri[k] as usize] * w[k]).sum()
+        let tri = self.0.triangles[t];
+        (0..3).map(|k| self.0.v[tri[k] as usize] * w[k]).sum()
     }
 }
 
@@ -215,24 +210,12 @@ pub(super) fn detect_pair(
     let stamp = bc.step;
     bc.meshes[mb].update(input.nodes, stamp);
     let mesh = &bc.meshes[mb];
-    bc.faces.clear();
-    bc.faces.extend((0..mesh.triangles.len()).map(|t| {
-        let [p, q, r] = mesh.corners(t);
-        let (tlo, thi) = (p.inf(&q).inf(&r), p.sup(&q).sup(&r));
-        let inside = (0..3).all(|k| tlo[k] <= hi[k] && thi[k] >= lo[k]);
-        let normal = if inside {
-            triangle_normal(&p, &q, &r)
-        } else {
-            Vector3::zeros()
-        };
-        (tlo, thi, normal)
-    }));
     bc.grid.build(
         lo,
         hi,
         mesh.mean_edge,
         mesh.triangles.len(),
-        bc.faces
+        mesh.faces
             .iter()
             .enumerate()
             .map(|(t, &(tlo, thi, _))| (t as u32, tlo, thi)),
@@ -241,10 +224,7 @@ pub(super) fn detect_pair(
         return;
     }
     let behind = BEHIND_LAYERS * h;
-    let faces = MeshFaces {
-        mesh,
-        table: &bc.faces,
-    };
+    let faces = MeshFaces(mesh);
     for i in bc.points[a].clone() {
         let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
             continue;

@@ -81,10 +81,12 @@ struct BodyMesh {
     cell: f64,
     /// Young's modulus read off the springs (eq 3.38, `A_sp = L²`), Pa.
     young: f64,
-    /// The step whose vertex positions and velocities `x`, `v` hold.
+    /// The step whose vertex positions and velocities `x`, `v` (and `faces`) hold.
     stamp: u64,
     x: Vec<Vector3<f64>>,
     v: Vec<Vector3<f64>>,
+    /// Per triangle at `stamp`: box (min, max) and unit normal.
+    faces: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
 }
 
 impl BodyMesh {
@@ -101,6 +103,15 @@ impl BodyMesh {
             }
             self.x[k] = x;
             self.v[k] = v;
+        }
+        // Each triangle's box and normal, once a step (a body's triangles meet the samples
+        // of every body near it; per pair, gathering the corners again was most of the pass).
+        self.faces.clear();
+        for t in &self.triangles {
+            let [p, q, r] = t.map(|i| self.x[i as usize]);
+            let normal = triangle_normal(&p, &q, &r);
+            self.faces
+                .push((p.inf(&q).inf(&r), p.sup(&q).sup(&r), normal));
         }
     }
 
@@ -190,8 +201,6 @@ pub struct BodyContact {
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
-    /// Per triangle of the mesh a pair's samples meet: box and normal (scratch).
-    faces: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
 }
 
 impl BodyContact {
@@ -854,6 +863,7 @@ impl World {
             cell: spacing,
             young,
             stamp: 0,
+            faces: Vec::new(),
             x: vec![Vector3::zeros(); n],
             v: vec![Vector3::zeros(); n],
         };
