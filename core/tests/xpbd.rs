@@ -272,6 +272,29 @@ fn the_same_bits_with_one_two_and_eight_threads() {
     assert_eq!(one, run(8));
 }
 
+/// An XPBD world for rubber parts of 0.5 m at 6 cells (their contact layer), with a floor at
+/// y = 0.
+fn floored_parts_world(rubber: &Material) -> World {
+    World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(0.5 / 6.0, rubber, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    })
+}
+
+/// Add `m` to `w` as a body at rest named `name` whose mesh touches the other bodies.
+fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> BodyHandle {
+    let h = w.add_lattice_body(name, &m.lattice, material, Vector3::zeros());
+    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+    w.add_contact_surface(h, &m.lattice, &samples, &areas);
+    w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
+    h
+}
+
 /// Two rubber cubes (0.5 m, 6 cells) side by side with a gap of `gap` metres (negative:
 /// overlapping), no gravity: the fastest node speed over 12 frames and the change of the
 /// gap between their centres.
@@ -292,11 +315,7 @@ fn neighbours_with(gap: f64, integrator: Integrator) -> (f64, f64, f64) {
     let mut cubes = Vec::new();
     for (i, x0) in [0.0, 0.5 + gap].into_iter().enumerate() {
         let m = mesh(box_mesh([x0, 0.0, 0.0], [x0 + 0.5, 0.5, 0.5]), 6);
-        let h = w.add_lattice_body(format!("cube{i}"), &m.lattice, &rubber, Vector3::zeros());
-        let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-        w.add_contact_surface(h, &m.lattice, &samples, &areas);
-        w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-        cubes.push(h);
+        cubes.push(add_part(&mut w, &format!("cube{i}"), &m, &rubber));
     }
     let centre_x = |w: &World, h: BodyHandle| {
         let xs = w.body_positions(h);
@@ -341,23 +360,11 @@ fn parts_that_start_close_or_overlapping_separate_without_gaining_speed() {
 #[test]
 fn a_body_falling_onto_another_still_bounces() {
     let rubber = Material::preset("rubber").unwrap();
-    let mut w = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(0.5 / 6.0, &rubber, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
+    let mut w = floored_parts_world(&rubber);
     let mut cubes = Vec::new();
     for (i, y0) in [0.0, 1.25].into_iter().enumerate() {
         let m = mesh(box_mesh([0.0, y0, 0.0], [0.5, y0 + 0.5, 0.5]), 6);
-        let h = w.add_lattice_body(format!("cube{i}"), &m.lattice, &rubber, Vector3::zeros());
-        let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-        w.add_contact_surface(h, &m.lattice, &samples, &areas);
-        w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-        cubes.push(h);
+        cubes.push(add_part(&mut w, &format!("cube{i}"), &m, &rubber));
     }
     let bottom = |w: &World| {
         w.body_positions(cubes[1])
@@ -633,15 +640,7 @@ fn the_reported_elastic_energy_at_an_impact_is_near_the_energy_the_ball_had() {
 fn parts_that_interpenetrate_at_the_start_are_glued_and_move_as_one() {
     let rubber = Material::preset("rubber").unwrap();
     let build = |ball_y: f64| {
-        let mut w = World::new(WorldSettings {
-            planes: vec![Plane {
-                normal: Vector3::y(),
-                offset: 0.0,
-            }],
-            layer: WorldSettings::default_layer(0.5 / 6.0, &rubber, 0.4),
-            integrator: Integrator::Xpbd,
-            ..WorldSettings::default()
-        });
+        let mut w = floored_parts_world(&rubber);
         let parts = [
             ("cube", mesh(box_mesh([0.0, 0.3, 0.0], [0.5, 0.8, 0.5]), 6)),
             (
@@ -649,15 +648,10 @@ fn parts_that_interpenetrate_at_the_start_are_glued_and_move_as_one() {
                 mesh(uv_sphere([0.25, ball_y, 0.25], 0.15, 12, 16), 6),
             ),
         ];
-        let mut handles = Vec::new();
-        for (name, m) in parts {
-            let h = w.add_lattice_body(name, &m.lattice, &rubber, Vector3::zeros());
-            let (samples, areas) =
-                surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-            w.add_contact_surface(h, &m.lattice, &samples, &areas);
-            w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-            handles.push(h);
-        }
+        let handles: Vec<BodyHandle> = parts
+            .iter()
+            .map(|(name, m)| add_part(&mut w, name, m, &rubber))
+            .collect();
         (w, handles)
     };
     let centre = |w: &World, h: BodyHandle| {
@@ -710,25 +704,12 @@ fn parts_that_interpenetrate_at_the_start_are_glued_and_move_as_one() {
 fn a_stack_of_boxes_touching_at_the_start_parts_gently_and_rests() {
     let rubber = Material::preset("rubber").unwrap();
     for gap in [0.0, 0.01] {
-        let mut w = World::new(WorldSettings {
-            planes: vec![Plane {
-                normal: Vector3::y(),
-                offset: 0.0,
-            }],
-            layer: WorldSettings::default_layer(0.5 / 6.0, &rubber, 0.4),
-            integrator: Integrator::Xpbd,
-            ..WorldSettings::default()
-        });
+        let mut w = floored_parts_world(&rubber);
         let mut cubes = Vec::new();
         for i in 0..3 {
             let y0 = gap + i as f64 * (0.5 + gap);
             let m = mesh(box_mesh([0.0, y0, 0.0], [0.5, y0 + 0.5, 0.5]), 6);
-            let h = w.add_lattice_body(format!("cube{i}"), &m.lattice, &rubber, Vector3::zeros());
-            let (samples, areas) =
-                surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-            w.add_contact_surface(h, &m.lattice, &samples, &areas);
-            w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-            cubes.push(h);
+            cubes.push(add_part(&mut w, &format!("cube{i}"), &m, &rubber));
         }
         let top_x = |w: &World| {
             let xs = w.body_positions(cubes[2]);
