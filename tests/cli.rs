@@ -608,21 +608,15 @@ fn parts_that_interpenetrate_are_named_as_glued_before_the_bake() {
     let two_cubes = |second_x: f64| {
         let mut obj = String::new();
         for (i, x0) in [0.0, second_x].into_iter().enumerate() {
+            let (points, triangles) =
+                springbake_core::shapes::box_mesh([x0, 0.3, 0.0], [x0 + 0.5, 0.8, 0.5]);
             obj += &format!("o part{i}\n");
-            for c in 0..8 {
-                let [x, y, z] = [c & 1, (c >> 1) & 1, (c >> 2) & 1].map(|b| 0.5 * b as f64);
-                obj += &format!("v {} {} {}\n", x0 + x, y + 0.3, z);
+            for p in &points {
+                obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
             }
-            let b = 8 * i + 1;
-            for f in [
-                [0, 2, 3, 1],
-                [4, 5, 7, 6],
-                [0, 1, 5, 4],
-                [2, 6, 7, 3],
-                [0, 4, 6, 2],
-                [1, 3, 7, 5],
-            ] {
-                obj += &format!("f {} {} {} {}\n", b + f[0], b + f[1], b + f[2], b + f[3]);
+            for t in triangles {
+                let [a, b, c] = t.map(|k| 8 * i + k as usize + 1);
+                obj += &format!("f {a} {b} {c}\n");
             }
         }
         obj
