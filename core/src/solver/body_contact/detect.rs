@@ -23,21 +23,21 @@ fn inside(p: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
 }
 
-/// `[x, v, box min, box max]`: contact sample `i`'s position and velocity when it lies in
-/// `[lo, hi]`, and the box its segment from the previous position sweeps, grown by `reach`
-/// (the grid query box).
+/// `[x, v, box min, box max]`: contact sample `i`'s position and velocity (from the step's
+/// cache) when it lies in `[lo, hi]`, and the box its segment from the previous position
+/// sweeps, grown by `reach` (the grid query box).
 fn swept_sample(
-    input: &PassInput,
+    bc: &BodyContact,
+    dt: f64,
     i: usize,
-    lo: &Vector3<f64>,
-    hi: &Vector3<f64>,
+    (lo, hi): (&Vector3<f64>, &Vector3<f64>),
     reach: f64,
 ) -> Option<[Vector3<f64>; 4]> {
-    let (x, v) = sample(input.surface, input.nodes, i);
+    let (x, v) = (bc.sample_x[i], bc.sample_v[i]);
     if !inside(&x, lo, hi) {
         return None;
     }
-    let prev = x - v * input.dt;
+    let prev = x - v * dt;
     Some([
         x,
         v,
@@ -52,13 +52,17 @@ trait Faces {
     fn corners(&self, t: usize) -> [Vector3<f64>; 3];
     /// Its box (the corners' bounds).
     fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>);
-    /// Its unit normal ([`triangle_normal`]; zero for a degenerate triangle).
-    fn normal(&self, t: usize) -> Vector3<f64>;
+    /// Its unit normal ([`triangle_normal`]; zero for a degenerate triangle) and the plane's
+    /// offset along it (`normal · corner`).
+    fn plane(&self, t: usize) -> (Vector3<f64>, f64);
+    /// Its fastest corner's speed, m/s.
+    fn speed(&self, t: usize) -> f64;
     /// The velocity of its point at barycentric weights `w`.
     fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64>;
 }
 
-/// A body's display triangles in the step (boxes and normals from [`BodyMesh::update`]).
+/// A body's display triangles in the step (boxes, planes and speeds from
+/// [`BodyMesh::refresh`]).
 struct MeshFaces<'a>(&'a BodyMesh);
 
 impl Faces for MeshFaces<'_> {
@@ -66,10 +70,13 @@ impl Faces for MeshFaces<'_> {
         self.0.corners(t)
     }
     fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>) {
-        (self.0.faces[t].0, self.0.faces[t].1)
+        (self.0.faces[t].lo, self.0.faces[t].hi)
     }
-    fn normal(&self, t: usize) -> Vector3<f64> {
-        self.0.faces[t].2
+    fn plane(&self, t: usize) -> (Vector3<f64>, f64) {
+        (self.0.faces[t].normal, self.0.faces[t].offset)
+    }
+    fn speed(&self, t: usize) -> f64 {
+        self.0.faces[t].speed
     }
     fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64> {
         let tri = self.0.triangles[t];
@@ -88,46 +95,122 @@ impl Faces for ColliderFaces<'_> {
         let [a, b, c] = self.0.corners(t);
         (a.inf(&b).inf(&c), a.sup(&b).sup(&c))
     }
-    fn normal(&self, t: usize) -> Vector3<f64> {
-        self.0.normals[t]
+    fn plane(&self, t: usize) -> (Vector3<f64>, f64) {
+        let n = self.0.normals[t];
+        (n, n.dot(&self.0.corners(t)[0]))
+    }
+    fn speed(&self, _: usize) -> f64 {
+        0.0
     }
     fn velocity(&self, _: usize, _: [f64; 3]) -> Vector3<f64> {
         Vector3::zeros()
     }
 }
 
-/// The best face contact of a point at `x` moving at `v` against triangles `candidates` of
-/// `faces`: a crossing of the segment from the previous position first, else the nearest face
-/// within the layer, or one the point lies just behind (at most `behind` deep).
-#[allow(clippy::too_many_arguments)]
-fn best_face(
+/// A point looking for its face: position `x` and velocity `v` in a step of `dt`, the layer
+/// thickness `h`, how deep `behind` a face it may still touch it.
+#[derive(Debug, Clone, Copy)]
+struct Probe {
     x: Vector3<f64>,
     v: Vector3<f64>,
     dt: f64,
     h: f64,
     behind: f64,
+}
+
+/// A candidate face that can still be the answer: a lower bound on its distance from the
+/// point, its place in the candidate list (ties go to the earlier one), its index, and whether
+/// the point may have crossed it in the step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Bound {
+    distance: f64,
+    order: u32,
+    tri: u32,
+    may_cross: bool,
+}
+
+/// The best face contact of `probe` against triangles `candidates` of `faces`: a crossing of
+/// the segment from the previous position first (the earliest), else the nearest face within
+/// the layer, or one the point lies just behind (at most `behind` deep); ties go to the
+/// earlier candidate. `bounds` is scratch.
+///
+/// A face cannot be nearer than its plane or its box (`max(|s|, box distance)`): the face of
+/// the nearest bound is looked at first, then the others in order, skipping any whose bound is
+/// no nearer than the nearest face so far unless the point may have crossed it. In a resting
+/// pile most candidates are coplanar with the nearest face, or the sides of the partner the
+/// point lies below: a point looks at two or three faces instead of thirty.
+fn best_face(
+    probe: Probe,
     candidates: &[u32],
     faces: &impl Faces,
+    bounds: &mut Vec<Bound>,
 ) -> Option<FaceHit> {
-    // (segment parameter or distance, hit)
-    let mut crossing: Option<(f64, FaceHit)> = None;
-    let mut near: Option<(f64, FaceHit)> = None;
+    let Probe {
+        x,
+        v,
+        dt,
+        h,
+        behind,
+    } = probe;
     let reach = h.max(behind);
     let (qlo, qhi) = (
         x.inf(&(x - v * dt)).add_scalar(-reach),
         x.sup(&(x - v * dt)).add_scalar(reach),
     );
-    for &t in candidates {
-        let t = t as usize;
+    bounds.clear();
+    for (order, &tri) in candidates.iter().enumerate() {
+        let t = tri as usize;
         // Cheap reject: the triangle's box misses the point's reach (grid cells are coarser).
         let (tlo, thi) = faces.bounds(t);
         if (0..3).any(|k| tlo[k] > qhi[k] || thi[k] < qlo[k]) {
             continue;
         }
-        let n = faces.normal(t);
+        let (n, offset) = faces.plane(t);
         if n == Vector3::zeros() {
             continue;
         }
+        // Signed distance from the plane: a crossing needs the point behind the face now,
+        // by less than the relative motion of the step could carry it.
+        let s = n.dot(&x) - offset;
+        let travel = 2.0 * (v.norm() + faces.speed(t)) * dt + 1e-9 * h;
+        let may_cross = s < 0.0 && -s < travel;
+        let gap = (tlo - x).sup(&(x - thi)).sup(&Vector3::zeros()).norm();
+        let distance = s.abs().max(gap);
+        let limit = if s >= 0.0 { h } else { behind };
+        if distance < limit || may_cross {
+            bounds.push(Bound {
+                distance,
+                order: order as u32,
+                tri,
+                may_cross,
+            });
+        }
+    }
+    if let Some(first) = (0..bounds.len()).min_by(|&i, &j| {
+        let (a, b) = (&bounds[i], &bounds[j]);
+        a.distance
+            .total_cmp(&b.distance)
+            .then(a.order.cmp(&b.order))
+    }) {
+        bounds.swap(0, first);
+    }
+    // (segment parameter or distance, candidate order, hit)
+    let mut crossing: Option<(f64, u32, FaceHit)> = None;
+    let mut near: Option<(f64, u32, FaceHit)> = None;
+    let earlier = |best: &Option<(f64, u32, FaceHit)>, key: f64, order: u32| {
+        best.as_ref()
+            .is_none_or(|b| key < b.0 || (key == b.0 && order < b.1))
+    };
+    for bound in bounds.iter() {
+        if !bound.may_cross
+            && near
+                .as_ref()
+                .is_some_and(|n| bound.distance >= n.0 * PRUNE_TIE)
+        {
+            continue;
+        }
+        let t = bound.tri as usize;
+        let (n, _) = faces.plane(t);
         let [a, b, c] = faces.corners(t);
         let (bary, interior) = closest_on_triangle(&x, &a, &b, &c);
         let q = a * bary[0] + b * bary[1] + c * bary[2];
@@ -137,7 +220,7 @@ fn best_face(
         let prev = x - rel * dt;
         if s_now < 0.0 && (prev - a).dot(&n) > 0.0 {
             if let Some((u, w)) = segment_crosses_triangle(&prev, &x, &a, &b, &c) {
-                if crossing.is_none_or(|c| u < c.0) {
+                if earlier(&crossing, u, bound.order) {
                     let hit = FaceHit {
                         tri: t,
                         bary: w,
@@ -145,7 +228,7 @@ fn best_face(
                         depth: h - s_now,
                         velocity: faces.velocity(t, w),
                     };
-                    crossing = Some((u, hit));
+                    crossing = Some((u, bound.order, hit));
                 }
             }
         }
@@ -164,7 +247,7 @@ fn best_face(
             None
         };
         if let Some((d, normal, depth)) = candidate {
-            if near.is_none_or(|n| d < n.0) {
+            if earlier(&near, d, bound.order) {
                 let hit = FaceHit {
                     tri: t,
                     bary,
@@ -172,12 +255,16 @@ fn best_face(
                     depth,
                     velocity: vq,
                 };
-                near = Some((d, hit));
+                near = Some((d, bound.order, hit));
             }
         }
     }
-    crossing.or(near).map(|(_, hit)| hit)
+    crossing.or(near).map(|(_, _, hit)| hit)
 }
+
+/// Faces whose distance bound lies this close (relative) to the nearest face so far are not
+/// looked at: coplanar faces of a flat region tie with it up to rounding.
+const PRUNE_TIE: f64 = 1.0 - 1e-12;
 
 /// A sample's contact with a face: triangle, barycentric weights of the face point, normal
 /// out of the face's body, depth into the layer, the face point's velocity.
@@ -207,30 +294,25 @@ pub(super) fn detect_pair(
         return;
     }
     let (h, dt) = (input.layer.thickness_m, input.dt);
-    let stamp = bc.step;
-    bc.meshes[mb].update(input.nodes, stamp);
-    let mesh = &bc.meshes[mb];
-    bc.grid.build(
-        lo,
-        hi,
-        mesh.mean_edge,
-        mesh.triangles.len(),
-        mesh.faces
-            .iter()
-            .enumerate()
-            .map(|(t, &(tlo, thi, _))| (t as u32, tlo, thi)),
-    );
-    if bc.grid.is_empty() {
-        return;
-    }
+    bc.meshes[mb].update(input.nodes, bc.step);
+    bc.update_samples(input.surface, input.nodes, a);
     let behind = BEHIND_LAYERS * h;
-    let faces = MeshFaces(mesh);
     for i in bc.points[a].clone() {
-        let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
+        let Some([x, v, qlo, qhi]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
             continue;
         };
-        bc.grid.query(&qlo, &qhi, &mut bc.candidates);
-        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &faces) {
+        let mesh = &mut bc.meshes[mb];
+        mesh.grid.query(&qlo, &qhi, &mut bc.candidates);
+        mesh.refresh(&bc.candidates);
+        let probe = Probe {
+            x,
+            v,
+            dt,
+            h,
+            behind,
+        };
+        let faces = MeshFaces(mesh);
+        if let Some(hit) = best_face(probe, &bc.candidates, &faces, &mut bc.bounds) {
             bc.contacts.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Face {
@@ -370,14 +452,22 @@ pub(super) fn detect_collider(
 ) {
     let (h, dt) = (input.layer.thickness_m, input.dt);
     let behind = BEHIND_LAYERS * h;
-    let col = &mut bc.colliders[c];
+    bc.update_samples(input.surface, input.nodes, a);
     for i in bc.points[a].clone() {
-        let Some([x, v, qlo, qhi]) = swept_sample(input, i, &lo, &hi, h.max(behind)) else {
+        let Some([x, v, qlo, qhi]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
             continue;
         };
+        let col = &mut bc.colliders[c];
         col.grid.query(&qlo, &qhi, &mut bc.candidates);
+        let probe = Probe {
+            x,
+            v,
+            dt,
+            h,
+            behind,
+        };
         let faces = ColliderFaces(col);
-        if let Some(hit) = best_face(x, v, dt, h, behind, &bc.candidates, &faces) {
+        if let Some(hit) = best_face(probe, &bc.candidates, &faces, &mut bc.bounds) {
             bc.contacts.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Static,
@@ -388,5 +478,202 @@ pub(super) fn detect_collider(
                 flipped: false,
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::{box_mesh, uv_sphere};
+
+    /// Triangles over moving vertices.
+    struct Moving {
+        x: Vec<Vector3<f64>>,
+        v: Vec<Vector3<f64>>,
+        triangles: Vec<[u32; 3]>,
+    }
+
+    impl Faces for Moving {
+        fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+            self.triangles[t].map(|i| self.x[i as usize])
+        }
+        fn bounds(&self, t: usize) -> (Vector3<f64>, Vector3<f64>) {
+            let [a, b, c] = self.corners(t);
+            (a.inf(&b).inf(&c), a.sup(&b).sup(&c))
+        }
+        fn plane(&self, t: usize) -> (Vector3<f64>, f64) {
+            let [a, b, c] = self.corners(t);
+            let n = triangle_normal(&a, &b, &c);
+            (n, n.dot(&a))
+        }
+        fn speed(&self, t: usize) -> f64 {
+            self.triangles[t]
+                .iter()
+                .map(|&i| self.v[i as usize].norm())
+                .fold(0.0, f64::max)
+        }
+        fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64> {
+            let tri = self.triangles[t];
+            (0..3).map(|k| self.v[tri[k] as usize] * w[k]).sum()
+        }
+    }
+
+    /// The search without bounds: every candidate looked at, in order.
+    /// Also says whether the contact is a crossing.
+    fn exhaustive(probe: Probe, candidates: &[u32], faces: &Moving) -> Option<(FaceHit, bool)> {
+        let Probe {
+            x,
+            v,
+            dt,
+            h,
+            behind,
+        } = probe;
+        let mut crossing: Option<(f64, FaceHit)> = None;
+        let mut near: Option<(f64, FaceHit)> = None;
+        for &t in candidates {
+            let t = t as usize;
+            let (n, _) = faces.plane(t);
+            if n == Vector3::zeros() {
+                continue;
+            }
+            let [a, b, c] = faces.corners(t);
+            let (bary, interior) = closest_on_triangle(&x, &a, &b, &c);
+            let q = a * bary[0] + b * bary[1] + c * bary[2];
+            let vq = faces.velocity(t, bary);
+            let s_now = (x - a).dot(&n);
+            let prev = x - (v - vq) * dt;
+            if s_now < 0.0 && (prev - a).dot(&n) > 0.0 {
+                if let Some((u, w)) = segment_crosses_triangle(&prev, &x, &a, &b, &c) {
+                    if crossing.is_none_or(|c| u < c.0) {
+                        let velocity = faces.velocity(t, w);
+                        let (depth, tri) = (h - s_now, t);
+                        let hit = FaceHit {
+                            tri,
+                            bary: w,
+                            normal: n,
+                            depth,
+                            velocity,
+                        };
+                        crossing = Some((u, hit));
+                    }
+                }
+            }
+            let d = (x - q).norm();
+            let side = (x - q).dot(&n);
+            let found = if side >= 0.0 && d < h {
+                let normal = if interior || d <= 1e-12 {
+                    n
+                } else {
+                    (x - q) / d
+                };
+                Some((d, normal, h - d))
+            } else if side < 0.0 && interior && d < behind {
+                Some((d, n, h + d))
+            } else {
+                None
+            };
+            if let Some((d, normal, depth)) = found {
+                if near.is_none_or(|n| d < n.0) {
+                    let hit = FaceHit {
+                        tri: t,
+                        bary,
+                        normal,
+                        depth,
+                        velocity: vq,
+                    };
+                    near = Some((d, hit));
+                }
+            }
+        }
+        match crossing {
+            Some((_, hit)) => Some((hit, true)),
+            None => near.map(|(_, hit)| (hit, false)),
+        }
+    }
+
+    /// A tiny deterministic generator in [-1, 1).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+        fn vector(&mut self) -> Vector3<f64> {
+            Vector3::new(self.next(), self.next(), self.next())
+        }
+    }
+
+    /// The bounded search finds the same contact as looking at every face: points near a
+    /// refined box and a sphere, in front of them, just behind them, crossing them in the
+    /// step, on moving and resting surfaces.
+    #[test]
+    fn the_bounded_search_finds_what_looking_at_every_face_finds() {
+        let (box_points, box_triangles) = box_mesh([-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]);
+        let (box_points, box_triangles) = refine(&box_points, &box_triangles, 0.1);
+        let (sphere_points, sphere_triangles) = uv_sphere([2.0, 0.0, 0.0], 0.5, 12, 24);
+        let mut rng = Lcg(7);
+        let (mut found, mut crossings, mut behind_hits) = (0, 0, 0);
+        let mut bounds = Vec::new();
+        for (points, triangles) in [
+            (box_points, box_triangles),
+            (sphere_points, sphere_triangles),
+        ] {
+            let centre =
+                points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+            for moving in [false, true] {
+                let faces = Moving {
+                    x: points.iter().map(|p| p.coords).collect(),
+                    v: points
+                        .iter()
+                        .map(|_| {
+                            if moving {
+                                rng.vector() * 0.5
+                            } else {
+                                Vector3::zeros()
+                            }
+                        })
+                        .collect(),
+                    triangles: triangles.clone(),
+                };
+                let all: Vec<u32> = (0..triangles.len() as u32).collect();
+                for _ in 0..2000 {
+                    // Points scattered through a shell around the surface.
+                    let p =
+                        points[(rng.next().abs() * points.len() as f64) as usize % points.len()];
+                    let out = (p.coords - centre).normalize();
+                    let x = p.coords + out * (0.06 * rng.next()) + rng.vector() * 0.03;
+                    let probe = Probe {
+                        x,
+                        v: rng.vector() * if rng.next() > 0.0 { 40.0 } else { 0.5 },
+                        dt: 1e-3,
+                        h: 0.05,
+                        behind: 0.05,
+                    };
+                    let want = exhaustive(probe, &all, &faces);
+                    let got = best_face(probe, &all, &faces, &mut bounds);
+                    match (want, got) {
+                        (None, None) => {}
+                        (Some((w, crossed)), Some(g)) => {
+                            found += 1;
+                            crossings += usize::from(crossed);
+                            behind_hits += usize::from(!crossed && w.depth > probe.h);
+                            assert!((w.depth - g.depth).abs() < 1e-9, "depth {w:?} {g:?}");
+                            assert!((w.normal - g.normal).norm() < 1e-9, "normal {w:?} {g:?}");
+                            assert!((w.velocity - g.velocity).norm() < 1e-9, "{w:?} {g:?}");
+                        }
+                        (w, g) => {
+                            panic!("at {x:?}: looking at every face gives {w:?}, bounded {g:?}")
+                        }
+                    }
+                }
+            }
+        }
+        // The scatter reaches every kind of contact.
+        assert!(found > 2000, "{found} contacts");
+        assert!(behind_hits > 100, "{behind_hits} contacts behind a face");
+        assert!(crossings > 100, "{crossings} crossings");
     }
 }

@@ -5,9 +5,9 @@
 //! world's [`SurfacePoints`], embedded in its lattice) are the *vertices*, its display
 //! triangles (registered with [`World::add_collision_surface`], every vertex embedded in the
 //! lattice too) the *faces*. Broad phase: the bodies' node boxes (every embedded point lies in
-//! the convex hull of its cell's nodes), then, for an overlapping pair, a uniform grid
-//! ([`BoxGrid`]) over the other body's triangles inside the overlap, rebuilt per step (cost
-//! linear in the triangles there). Narrow phase:
+//! the convex hull of its cell's nodes), then, for an overlapping pair, each sample inside the
+//! overlap queries the other body's grid of triangles ([`mesh::BodyMesh`]: a [`BoxGrid`] of
+//! boxes grown by a margin, rebuilt only once a vertex has left it). Narrow phase:
 //! - vertex–face: the segment from the point's previous position (relative to the face,
 //!   `x − (v − v_face) Δt`) to its position now; a segment that enters a face from its front
 //!   side is a contact with that face even if the point went deep (no tunnelling within a
@@ -61,65 +61,6 @@ pub enum ContactModel {
     Hertz,
 }
 
-/// A body's display surface for body–body contact.
-#[derive(Debug, Clone, PartialEq)]
-struct BodyMesh {
-    body: usize,
-    /// Per vertex: its cell's world node indices and trilinear weights.
-    nodes: Vec<[u32; 8]>,
-    weights: Vec<[f64; 8]>,
-    triangles: Vec<[u32; 3]>,
-    /// Unique edges of the display mesh as given (before refinement), longer than a node
-    /// spacing, `[a, b, c]`: `c` the third corner of a triangle holding the edge, so
-    /// `(a, b, c)` gives its outward normal.
-    edges: Vec<[u32; 3]>,
-    /// The display triangles as given (for the local radius of curvature).
-    display: Vec<[u32; 3]>,
-    /// Mean edge length at rest, m (the grid's cell).
-    mean_edge: f64,
-    /// The lattice cell, m.
-    cell: f64,
-    /// Young's modulus read off the springs (eq 3.38, `A_sp = L²`), Pa.
-    young: f64,
-    /// The step whose vertex positions and velocities `x`, `v` (and `faces`) hold.
-    stamp: u64,
-    x: Vec<Vector3<f64>>,
-    v: Vec<Vector3<f64>>,
-    /// Per triangle at `stamp`: box (min, max) and unit normal.
-    faces: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
-}
-
-impl BodyMesh {
-    fn update(&mut self, nodes: &NodeState, stamp: u64) {
-        if self.stamp == stamp {
-            return;
-        }
-        self.stamp = stamp;
-        for (k, (ids, w)) in self.nodes.iter().zip(&self.weights).enumerate() {
-            let (mut x, mut v) = (Vector3::zeros(), Vector3::zeros());
-            for c in 0..8 {
-                x += nodes.position[ids[c] as usize] * w[c];
-                v += nodes.velocity[ids[c] as usize] * w[c];
-            }
-            self.x[k] = x;
-            self.v[k] = v;
-        }
-        // Each triangle's box and normal, once a step (a body's triangles meet the samples
-        // of every body near it; per pair, gathering the corners again was most of the pass).
-        self.faces.clear();
-        for t in &self.triangles {
-            let [p, q, r] = t.map(|i| self.x[i as usize]);
-            let normal = triangle_normal(&p, &q, &r);
-            self.faces
-                .push((p.inf(&q).inf(&r), p.sup(&q).sup(&r), normal));
-        }
-    }
-
-    fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
-        self.triangles[t].map(|i| self.x[i as usize])
-    }
-}
-
 /// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
 /// in the step: deeper, the layer has already failed; the search reaches this far.
 pub(crate) const BEHIND_LAYERS: f64 = 1.0;
@@ -166,8 +107,10 @@ struct Contact {
 }
 
 mod detect;
+mod mesh;
 pub(crate) mod overlap;
 use detect::*;
+use mesh::{refine, BodyMesh};
 
 /// The contact pass's state: meshes, colliders, the model, the force it leaves for the node
 /// pass, and scratch buffers.
@@ -197,7 +140,13 @@ pub struct BodyContact {
     built_for: (usize, usize),
     grid: BoxGrid,
     candidates: Vec<u32>,
+    bounds: Vec<Bound>,
     contacts: Vec<Contact>,
+    /// Per surface point: position and velocity in the step `sample_stamp` of its body holds
+    /// (computed once a step for a body in any pair, not once per pair).
+    sample_x: Vec<Vector3<f64>>,
+    sample_v: Vec<Vector3<f64>>,
+    sample_stamp: Vec<u64>,
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
@@ -218,6 +167,18 @@ impl BodyContact {
     /// Whether any pair can touch (a body's surface, or a collider).
     pub fn any(&self) -> bool {
         !self.colliders.is_empty() || !self.meshes.is_empty()
+    }
+
+    /// Body `b`'s surface points' positions and velocities in this step, into `sample_x`,
+    /// `sample_v` (once a step).
+    fn update_samples(&mut self, surface: &SurfacePoints, nodes: &NodeState, b: usize) {
+        if self.sample_stamp[b] == self.step {
+            return;
+        }
+        self.sample_stamp[b] = self.step;
+        for i in self.points[b].clone() {
+            (self.sample_x[i], self.sample_v[i]) = sample(surface, nodes, i);
+        }
     }
 
     fn partner_slots(&self) -> usize {
@@ -268,6 +229,9 @@ impl BodyContact {
             }
         }
         self.boxes = vec![(Vector3::zeros(), Vector3::zeros()); bodies.len()];
+        self.sample_x = vec![Vector3::zeros(); surface.len()];
+        self.sample_v = vec![Vector3::zeros(); surface.len()];
+        self.sample_stamp = vec![0; bodies.len()];
         self.hertz_n2 = vec![None; bodies.len() * (bodies.len() + self.colliders.len())];
     }
 }
@@ -686,52 +650,6 @@ fn hertz_n2(bc: &mut BodyContact, input: &PassInput, a: usize, b: Option<usize>,
     (4.0 / 3.0) * qk / ((d1 + d2) * (2.0 * coefficient).sqrt())
 }
 
-/// Most halvings of one display triangle by [`refine`] (at most 2¹² pieces: a triangle 64
-/// spacings long).
-const MAX_BISECTIONS: u32 = 12;
-
-/// `triangles` with every triangle whose longest edge is over `spacing` halved across that
-/// edge until none is (longest-edge bisection; corners keep their vertex, new vertices are
-/// appended), so the reaction on a face lands on the lattice cells under the contact, not on
-/// the corners of a coarse mesh's big triangles. A thin sliver (a bevel, a rim) is cut along
-/// its length only: a barycentric grid cut it into `n²` slivers (a 1.2 m strip of a
-/// COLLADA-converted box into 576), whose boxes each query then had to test (a box nested in
-/// another took 10 s a frame). Triangles with an out-of-range index are dropped.
-fn refine(
-    positions: &[Point3<f64>],
-    triangles: &[[u32; 3]],
-    spacing: f64,
-) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
-    let mut points = positions.to_vec();
-    let mut out = Vec::with_capacity(triangles.len());
-    let mut stack: Vec<([u32; 3], u32)> = Vec::new();
-    for t in triangles {
-        if t.iter().any(|&i| i as usize >= positions.len()) {
-            continue;
-        }
-        stack.push((*t, 0));
-        while let Some((tri, depth)) = stack.pop() {
-            let p = tri.map(|i| points[i as usize]);
-            let length = |e: usize| (p[(e + 1) % 3] - p[e]).norm();
-            let e = (1..3).fold(0, |best, e| if length(e) > length(best) { e } else { best });
-            // `!(… > spacing)` also stops at a NaN length or spacing.
-            if depth >= MAX_BISECTIONS || !(spacing > 0.0 && length(e) > spacing) {
-                out.push(tri);
-                continue;
-            }
-            let (a, b, c) = (tri[e], tri[(e + 1) % 3], tri[(e + 2) % 3]);
-            points.push(Point3::from(
-                (points[a as usize].coords + points[b as usize].coords) * 0.5,
-            ));
-            let m = (points.len() - 1) as u32;
-            // The same winding as (a, b, c); the half at `a` comes out first.
-            stack.push(([m, b, c], depth + 1));
-            stack.push(([a, m, c], depth + 1));
-        }
-    }
-    (points, out)
-}
-
 impl World {
     /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
     /// counter-clockwise from outside) for contact with other bodies: its vertices are
@@ -843,30 +761,24 @@ impl World {
             .collect();
         let young = hertz::young_from_springs(&springs, hertz::lattice_spring_area_m2(spacing))
             .unwrap_or(f64::INFINITY);
-        let n = refined_positions.len();
-        let mesh = BodyMesh {
-            body: body.0,
-            nodes: embedding
+        let mean_edge = if triangles.is_empty() {
+            spacing
+        } else {
+            edge_sum / (3 * triangles.len()) as f64
+        };
+        let mesh = BodyMesh::new(
+            body.0,
+            embedding
                 .nodes
                 .iter()
                 .map(|c| c.map(|i| i + base))
                 .collect(),
-            weights: embedding.weights.clone(),
-            mean_edge: if triangles.is_empty() {
-                spacing
-            } else {
-                edge_sum / (3 * triangles.len()) as f64
-            },
+            embedding.weights.clone(),
             triangles,
             edges,
             display,
-            cell: spacing,
-            young,
-            stamp: 0,
-            faces: Vec::new(),
-            x: vec![Vector3::zeros(); n],
-            v: vec![Vector3::zeros(); n],
-        };
+            (mean_edge, spacing, young),
+        );
         let bc = &mut self.body_contact;
         bc.meshes.retain(|m| m.body != body.0);
         bc.meshes.push(mesh);

@@ -1,0 +1,233 @@
+//! A body's display surface in the contact pass ([`BodyMesh`]): its refined triangles
+//! embedded in the lattice, their vertices, boxes and planes in the step, and the grid the
+//! other bodies' samples query it with.
+//!
+//! The grid holds each triangle's box grown by a margin and is rebuilt only once a vertex has
+//! moved farther than the margin since the last build (a resting or slowly moving body keeps
+//! it for many steps); a triangle's box and plane are computed in the step only when a query
+//! finds it ([`BodyMesh::refresh`]). In a pile of 60 boxes, rebuilding every mesh's grid and
+//! every triangle's plane each step was a third of the whole bake.
+
+use super::*;
+
+/// A body's display surface for body–body contact.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct BodyMesh {
+    pub body: usize,
+    /// Per vertex: its cell's world node indices and trilinear weights.
+    pub nodes: Vec<[u32; 8]>,
+    pub weights: Vec<[f64; 8]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Unique edges of the display mesh as given (before refinement), longer than a node
+    /// spacing, `[a, b, c]`: `c` the third corner of a triangle holding the edge, so
+    /// `(a, b, c)` gives its outward normal.
+    pub edges: Vec<[u32; 3]>,
+    /// The display triangles as given (for the local radius of curvature).
+    pub display: Vec<[u32; 3]>,
+    /// Mean edge length at rest, m (the grid's cell).
+    pub mean_edge: f64,
+    /// The lattice cell, m.
+    pub cell: f64,
+    /// Young's modulus read off the springs (eq 3.38, `A_sp = L²`), Pa.
+    pub young: f64,
+    /// The step whose vertex positions and velocities `x`, `v` hold.
+    stamp: u64,
+    pub x: Vec<Vector3<f64>>,
+    pub v: Vec<Vector3<f64>>,
+    /// Per triangle: its box and plane in the step `face_stamp` says.
+    pub faces: Vec<FaceBox>,
+    face_stamp: Vec<u64>,
+    /// The triangles' boxes grown by `margin` at the vertex positions `built_at`.
+    pub grid: BoxGrid,
+    built_at: Vec<Vector3<f64>>,
+    margin: f64,
+}
+
+/// A display triangle in the step: what the narrow phase reads before it gathers corners.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(super) struct FaceBox {
+    pub lo: Vector3<f64>,
+    pub hi: Vector3<f64>,
+    /// Unit normal (zero for a degenerate triangle).
+    pub normal: Vector3<f64>,
+    /// `normal · corner`: a point's signed distance from the plane is `normal · x − offset`.
+    pub offset: f64,
+    /// The fastest corner's speed, m/s (bounds how far the face moved in the step).
+    pub speed: f64,
+}
+
+/// How far (in mean edge lengths) a vertex may move before the mesh's grid is rebuilt: the
+/// grid holds each triangle's box grown by this much.
+const GRID_MARGIN_EDGES: f64 = 0.15;
+
+impl BodyMesh {
+    /// A mesh of `triangles` over vertices embedded by `nodes` and `weights`, in the step
+    /// before the first.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        body: usize,
+        nodes: Vec<[u32; 8]>,
+        weights: Vec<[f64; 8]>,
+        triangles: Vec<[u32; 3]>,
+        edges: Vec<[u32; 3]>,
+        display: Vec<[u32; 3]>,
+        (mean_edge, cell, young): (f64, f64, f64),
+    ) -> Self {
+        let n = nodes.len();
+        BodyMesh {
+            body,
+            nodes,
+            weights,
+            faces: vec![FaceBox::default(); triangles.len()],
+            face_stamp: vec![0; triangles.len()],
+            triangles,
+            edges,
+            display,
+            mean_edge,
+            cell,
+            young,
+            stamp: 0,
+            x: vec![Vector3::zeros(); n],
+            v: vec![Vector3::zeros(); n],
+            grid: BoxGrid::default(),
+            built_at: Vec::new(),
+            margin: GRID_MARGIN_EDGES * mean_edge,
+        }
+    }
+
+    /// The vertices' positions and velocities in step `stamp` (once a step), and the grid
+    /// rebuilt when a vertex has left its margin.
+    pub fn update(&mut self, nodes: &NodeState, stamp: u64) {
+        if self.stamp == stamp {
+            return;
+        }
+        self.stamp = stamp;
+        for (k, (ids, w)) in self.nodes.iter().zip(&self.weights).enumerate() {
+            let (mut x, mut v) = (Vector3::zeros(), Vector3::zeros());
+            for c in 0..8 {
+                x += nodes.position[ids[c] as usize] * w[c];
+                v += nodes.velocity[ids[c] as usize] * w[c];
+            }
+            self.x[k] = x;
+            self.v[k] = v;
+        }
+        let moved = if self.built_at.len() == self.x.len() {
+            let m2 = self.margin * self.margin;
+            let far = |(x, b): (&Vector3<f64>, &Vector3<f64>)| {
+                let d2 = (x - b).norm_squared();
+                d2.is_nan() || d2 > m2
+            };
+            self.x.iter().zip(&self.built_at).any(far)
+        } else {
+            true
+        };
+        if moved {
+            self.build_grid();
+        }
+    }
+
+    /// The grid over the triangles' boxes at the vertices' positions now, grown by the margin.
+    fn build_grid(&mut self) {
+        self.built_at.clone_from(&self.x);
+        let (x, m) = (&self.x, self.margin);
+        let grown = |t: &[u32; 3]| {
+            let [p, q, r] = t.map(|i| x[i as usize]);
+            (
+                p.inf(&q).inf(&r).add_scalar(-m),
+                p.sup(&q).sup(&r).add_scalar(m),
+            )
+        };
+        let (mut lo, mut hi) = (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        );
+        for t in &self.triangles {
+            let (tlo, thi) = grown(t);
+            lo = lo.inf(&tlo);
+            hi = hi.sup(&thi);
+        }
+        let boxes = self.triangles.iter().enumerate().map(|(k, t)| {
+            let (tlo, thi) = grown(t);
+            (k as u32, tlo, thi)
+        });
+        self.grid
+            .build(lo, hi, self.mean_edge, self.triangles.len(), boxes);
+    }
+
+    /// Triangles `candidates`' boxes, planes and speeds in this step (each computed once a
+    /// step, when a query first finds it).
+    pub fn refresh(&mut self, candidates: &[u32]) {
+        for &t in candidates {
+            let t = t as usize;
+            if self.face_stamp[t] == self.stamp {
+                continue;
+            }
+            self.face_stamp[t] = self.stamp;
+            let tri = self.triangles[t];
+            let [p, q, r] = tri.map(|i| self.x[i as usize]);
+            let normal = triangle_normal(&p, &q, &r);
+            let speed = tri
+                .iter()
+                .map(|&i| self.v[i as usize].norm_squared())
+                .fold(0.0, f64::max)
+                .sqrt();
+            self.faces[t] = FaceBox {
+                lo: p.inf(&q).inf(&r),
+                hi: p.sup(&q).sup(&r),
+                normal,
+                offset: normal.dot(&p),
+                speed,
+            };
+        }
+    }
+
+    pub fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
+        self.triangles[t].map(|i| self.x[i as usize])
+    }
+}
+
+/// Most halvings of one display triangle by [`refine`] (at most 2¹² pieces: a triangle 64
+/// spacings long).
+const MAX_BISECTIONS: u32 = 12;
+
+/// `triangles` with every triangle whose longest edge is over `spacing` halved across that
+/// edge until none is (longest-edge bisection; corners keep their vertex, new vertices are
+/// appended), so the reaction on a face lands on the lattice cells under the contact, not on
+/// the corners of a coarse mesh's big triangles. A thin sliver (a bevel, a rim) is cut along
+/// its length only: a barycentric grid cut it into `n²` slivers (a 1.2 m strip of a
+/// COLLADA-converted box into 576), whose boxes each query then had to test (a box nested in
+/// another took 10 s a frame). Triangles with an out-of-range index are dropped.
+pub(super) fn refine(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    spacing: f64,
+) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let mut points = positions.to_vec();
+    let mut out = Vec::with_capacity(triangles.len());
+    let mut stack: Vec<([u32; 3], u32)> = Vec::new();
+    for t in triangles {
+        if t.iter().any(|&i| i as usize >= positions.len()) {
+            continue;
+        }
+        stack.push((*t, 0));
+        while let Some((tri, depth)) = stack.pop() {
+            let p = tri.map(|i| points[i as usize]);
+            let length = |e: usize| (p[(e + 1) % 3] - p[e]).norm();
+            let e = (1..3).fold(0, |best, e| if length(e) > length(best) { e } else { best });
+            // `!(… > spacing)` also stops at a NaN length or spacing.
+            if depth >= MAX_BISECTIONS || !(spacing > 0.0 && length(e) > spacing) {
+                out.push(tri);
+                continue;
+            }
+            let (a, b, c) = (tri[e], tri[(e + 1) % 3], tri[(e + 2) % 3]);
+            points.push(Point3::from(
+                (points[a as usize].coords + points[b as usize].coords) * 0.5,
+            ));
+            let m = (points.len() - 1) as u32;
+            // The same winding as (a, b, c); the half at `a` comes out first.
+            stack.push(([m, b, c], depth + 1));
+            stack.push(([a, m, c], depth + 1));
+        }
+    }
+    (points, out)
+}
