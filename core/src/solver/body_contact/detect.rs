@@ -47,7 +47,7 @@ fn swept_sample(
 }
 
 /// The triangles a point can meet, as [`best_face`] reads them.
-trait Faces {
+pub(super) trait Faces {
     /// The corners of triangle `t`.
     fn corners(&self, t: usize) -> [Vector3<f64>; 3];
     /// Its box (the corners' bounds).
@@ -59,11 +59,19 @@ trait Faces {
     fn speed(&self, t: usize) -> f64;
     /// The velocity of its point at barycentric weights `w`.
     fn velocity(&self, t: usize, w: [f64; 3]) -> Vector3<f64>;
+
+    /// A lower bound on the distance from `x` to triangle `t`: its plane's and its box's.
+    fn distance_bound(&self, t: usize, x: &Vector3<f64>) -> f64 {
+        let (n, offset) = self.plane(t);
+        let (lo, hi) = self.bounds(t);
+        let gap = (lo - x).sup(&(x - hi)).sup(&Vector3::zeros()).norm();
+        (n.dot(x) - offset).abs().max(gap)
+    }
 }
 
 /// A body's display triangles in the step (boxes, planes and speeds from
 /// [`BodyMesh::refresh`]).
-struct MeshFaces<'a>(&'a BodyMesh);
+pub(super) struct MeshFaces<'a>(pub &'a BodyMesh);
 
 impl Faces for MeshFaces<'_> {
     fn corners(&self, t: usize) -> [Vector3<f64>; 3] {
@@ -174,8 +182,7 @@ fn best_face(
         let s = n.dot(&x) - offset;
         let travel = 2.0 * (v.norm() + faces.speed(t)) * dt + 1e-9 * h;
         let may_cross = s < 0.0 && -s < travel;
-        let gap = (tlo - x).sup(&(x - thi)).sup(&Vector3::zeros()).norm();
-        let distance = s.abs().max(gap);
+        let distance = faces.distance_bound(t, &x);
         let limit = if s >= 0.0 { h } else { behind };
         if distance < limit || may_cross {
             bounds.push(Bound {
@@ -297,13 +304,16 @@ pub(super) fn detect_pair(
     bc.meshes[mb].update(input.nodes, bc.step);
     bc.update_samples(input.surface, input.nodes, a);
     let behind = BEHIND_LAYERS * h;
-    for i in bc.points[a].clone() {
-        let Some([x, v, qlo, qhi]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
+    let list = neighbours::take(bc, input, (a, b, mb), lo, hi);
+    let mut start = 0;
+    for &(i, end) in &list.samples {
+        let (i, candidates) = (i as usize, &list.faces[start as usize..end as usize]);
+        start = end;
+        let Some([x, v, _, _]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
             continue;
         };
         let mesh = &mut bc.meshes[mb];
-        mesh.grid.query(&qlo, &qhi, &mut bc.candidates);
-        mesh.refresh(&bc.candidates);
+        mesh.refresh(candidates);
         let probe = Probe {
             x,
             v,
@@ -312,7 +322,7 @@ pub(super) fn detect_pair(
             behind,
         };
         let faces = MeshFaces(mesh);
-        if let Some(hit) = best_face(probe, &bc.candidates, &faces, &mut bc.bounds) {
+        if let Some(hit) = best_face(probe, candidates, &faces, &mut bc.bounds) {
             bc.contacts.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Face {
@@ -328,6 +338,7 @@ pub(super) fn detect_pair(
             });
         }
     }
+    neighbours::put_back(bc, (a, b), list);
 }
 
 /// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` (the grid

@@ -108,6 +108,7 @@ struct Contact {
 
 mod detect;
 mod mesh;
+mod neighbours;
 pub(crate) mod overlap;
 use detect::*;
 use mesh::{refine, BodyMesh};
@@ -132,6 +133,8 @@ pub struct BodyContact {
     step: u64,
     /// Per body: node box, surface point range, mass per unit of share, mesh index.
     boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// Per body: its fastest node's speed in the step, m/s.
+    max_speed: Vec<f64>,
     points: Vec<Range<usize>>,
     mass_per_share: Vec<f64>,
     mass: Vec<f64>,
@@ -147,6 +150,10 @@ pub struct BodyContact {
     sample_x: Vec<Vector3<f64>>,
     sample_v: Vec<Vector3<f64>>,
     sample_stamp: Vec<u64>,
+    /// The samples' candidate faces per pair of bodies (kept across steps).
+    neighbours: neighbours::Neighbours,
+    /// Rebuild every pair's neighbour lists each step (for tests: the grid search alone).
+    pub(crate) lists_off: bool,
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
@@ -229,9 +236,11 @@ impl BodyContact {
             }
         }
         self.boxes = vec![(Vector3::zeros(), Vector3::zeros()); bodies.len()];
+        self.max_speed = vec![0.0; bodies.len()];
         self.sample_x = vec![Vector3::zeros(); surface.len()];
         self.sample_v = vec![Vector3::zeros(); surface.len()];
         self.sample_stamp = vec![0; bodies.len()];
+        self.neighbours = Default::default();
         self.hertz_n2 = vec![None; bodies.len() * (bodies.len() + self.colliders.len())];
     }
 }
@@ -353,6 +362,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     } = *input;
     bc.tables(nodes, surface, bodies);
     bc.step += 1;
+    bc.neighbours.forget_stale(bc.step);
     if bc.force.len() != nodes.len() {
         bc.force = vec![Vector3::zeros(); nodes.len()];
     }
@@ -362,22 +372,38 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             Vector3::repeat(f64::INFINITY),
             Vector3::repeat(f64::NEG_INFINITY),
         );
+        let mut speed2: f64 = 0.0;
         if bc.mesh_of[b].is_some() || !bc.points[b].is_empty() {
-            for x in &nodes.position[info.nodes.clone()] {
+            for (x, v) in nodes.position[info.nodes.clone()]
+                .iter()
+                .zip(&nodes.velocity[info.nodes.clone()])
+            {
                 lo = lo.inf(x);
                 hi = hi.sup(x);
+                speed2 = speed2.max(v.norm_squared());
             }
         }
         bc.boxes[b] = (lo, hi);
+        bc.max_speed[b] = speed2.sqrt();
     }
     let n_bodies = bodies.len();
+    let reach = h.max(BEHIND_LAYERS * h);
     for a in 0..n_bodies {
         for b in a + 1..n_bodies {
             let (alo, ahi) = bc.boxes[a];
             let (blo, bhi) = bc.boxes[b];
             let lo = alo.sup(&blo).add_scalar(-h);
             let hi = ahi.inf(&bhi).add_scalar(h);
-            let apart = (0..3).any(|k| lo[k] > hi[k]) || bc.ignored_pairs.contains(&(a, b));
+            // A contact needs a point of one within the reach of the other's surface, or
+            // crossing it in the step: boxes farther apart than that (with both moving at
+            // their fastest node) cannot touch. (`[lo, hi]` is both boxes grown by `h`: it
+            // admits gaps up to `2h`.)
+            let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
+            let sweep = (bc.max_speed[a] + bc.max_speed[b]) * dt;
+            let apart = gap.is_nan()
+                || gap > reach + sweep
+                || (0..3).any(|k| lo[k] > hi[k])
+                || bc.ignored_pairs.contains(&(a, b));
             let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
             bc.contacts.clear();
             if !apart && has_faces {
