@@ -27,6 +27,10 @@ const SKIN_REACHES: f64 = 0.25;
 /// A body re-anchors once a node has moved this fraction of the skin from its anchor.
 const ANCHOR_DRIFT: f64 = 0.25;
 
+/// How many steps a list must be expected to live (at the bodies' speeds) to be built with a
+/// skin.
+const LIST_STEPS: f64 = 4.0;
+
 /// How many steps a list not looked at is kept.
 const STALE_STEPS: u64 = 64;
 
@@ -53,6 +57,8 @@ pub(super) struct FaceList {
     /// Both bodies' anchors when built, and their drift then (summed).
     epochs: (u64, u64),
     drift_at_build: f64,
+    /// The skin it was built with, m (none while the bodies move fast).
+    skin: f64,
     /// The step it was last looked at.
     used: u64,
     /// Per sample with faces: its index and the end of its faces in `faces`.
@@ -129,13 +135,18 @@ pub(super) fn take(
     let fresh = list.epochs == (epoch_a, epoch_b)
         && list.used > 0
         && !bc.lists_off
-        && list.drift_at_build + drift_a + drift_b + sweep <= skin;
+        && list.drift_at_build + drift_a + drift_b + sweep <= list.skin;
     list.used = step;
     if fresh {
         return list;
     }
+    // A list pays only if it outlives a few steps: while the bodies move fast enough to
+    // re-anchor sooner, it is built without a skin (the plain search, for this step only).
+    let calm = sweep * LIST_STEPS <= ANCHOR_DRIFT * skin;
+    let skin = if calm { skin } else { 0.0 };
     list.epochs = (epoch_a, epoch_b);
     list.drift_at_build = drift_a + drift_b;
+    list.skin = skin;
     list.samples.clear();
     list.faces.clear();
     let (wide_lo, wide_hi) = (lo.add_scalar(-skin), hi.add_scalar(skin));
