@@ -239,21 +239,7 @@ fn best_face(
                 }
             }
         }
-        let d = (x - q).norm();
-        let side = (x - q).dot(&n);
-        let candidate = if side >= 0.0 && d < h {
-            let normal = if interior || d <= 1e-12 {
-                n
-            } else {
-                (x - q) / d
-            };
-            Some((d, normal, h - d))
-        } else if side < 0.0 && interior && d < behind {
-            Some((d, n, h + d))
-        } else {
-            None
-        };
-        if let Some((d, normal, depth)) = candidate {
+        if let Some((d, normal, depth)) = near_contact(&probe, q, n, interior) {
             if earlier(&near, d, bound.order) {
                 let hit = FaceHit {
                     tri: t,
@@ -267,6 +253,32 @@ fn best_face(
         }
     }
     crossing.or(near).map(|(_, _, hit)| hit)
+}
+
+/// The contact of `probe` with the nearest point `q` of a face with unit normal `n` (`interior`:
+/// `q` inside the face, not on an edge): `(distance, normal, depth)` when the point lies
+/// within the layer in front of it, or at most `behind` behind its interior.
+fn near_contact(
+    probe: &Probe,
+    q: Vector3<f64>,
+    n: Vector3<f64>,
+    interior: bool,
+) -> Option<(f64, Vector3<f64>, f64)> {
+    let (x, h) = (probe.x, probe.h);
+    let d = (x - q).norm();
+    let side = (x - q).dot(&n);
+    if side >= 0.0 && d < h {
+        let normal = if interior || d <= 1e-12 {
+            n
+        } else {
+            (x - q) / d
+        };
+        Some((d, normal, h - d))
+    } else if side < 0.0 && interior && d < probe.behind {
+        Some((d, n, h + d))
+    } else {
+        None
+    }
 }
 
 /// Faces whose distance bound lies this close (relative) to the nearest face so far are not
@@ -532,13 +544,7 @@ mod tests {
     /// The search without bounds: every candidate looked at, in order.
     /// Also says whether the contact is a crossing.
     fn exhaustive(probe: Probe, candidates: &[u32], faces: &Moving) -> Option<(FaceHit, bool)> {
-        let Probe {
-            x,
-            v,
-            dt,
-            h,
-            behind,
-        } = probe;
+        let Probe { x, v, dt, h, .. } = probe;
         let mut crossing: Option<(f64, FaceHit)> = None;
         let mut near: Option<(f64, FaceHit)> = None;
         for &t in candidates {
@@ -569,21 +575,7 @@ mod tests {
                     }
                 }
             }
-            let d = (x - q).norm();
-            let side = (x - q).dot(&n);
-            let found = if side >= 0.0 && d < h {
-                let normal = if interior || d <= 1e-12 {
-                    n
-                } else {
-                    (x - q) / d
-                };
-                Some((d, normal, h - d))
-            } else if side < 0.0 && interior && d < behind {
-                Some((d, n, h + d))
-            } else {
-                None
-            };
-            if let Some((d, normal, depth)) = found {
+            if let Some((d, normal, depth)) = near_contact(&probe, q, n, interior) {
                 if near.is_none_or(|n| d < n.0) {
                     let hit = FaceHit {
                         tri: t,
