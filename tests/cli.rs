@@ -633,3 +633,41 @@ fn parts_that_interpenetrate_are_named_as_glued_before_the_bake() {
         assert_eq!(named, glued, "second cube at x = {second_x}: {err}");
     }
 }
+
+#[test]
+fn a_body_that_starts_inside_a_collider_is_named_before_the_bake() {
+    // A 0.5 m cube inside a closed 2 m box collider (the collider cannot hold it in), and
+    // the same cube above the box (no note).
+    let dir = tempfile::tempdir().unwrap();
+    let obj = |name: &str, lo: [f64; 3], hi: [f64; 3]| {
+        let (points, triangles) = springbake_core::shapes::box_mesh(lo, hi);
+        let mut text = format!("o {name}\n");
+        for p in &points {
+            text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        for t in triangles {
+            let [a, b, c] = t.map(|k| k + 1);
+            text += &format!("f {a} {b} {c}\n");
+        }
+        text
+    };
+    std::fs::write(
+        dir.path().join("crate.obj"),
+        obj("crate", [0.0; 3], [2.0; 3]),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("cube.obj"), obj("cube", [0.0; 3], [0.5; 3])).unwrap();
+    for (y, inside) in [(0.75, true), (2.5, false)] {
+        let scene = format!(
+            "[output]\npath = \"out.pc2\"\nframes = 2\n[world]\nfloor = -1.0\n\
+             [[body]]\nsource = \"cube.obj\"\ncells = 4\noffset = [0.75, {y}, 0.75]\n\
+             [[collider]]\nsource = \"crate.obj\"\n"
+        );
+        std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+        let o = support::springbake_in(dir.path(), &["bake", "scene.toml"]);
+        let err = stderr(&o);
+        assert!(o.status.success(), "{err}");
+        let named = err.contains("body \"cube\" starts inside collider \"crate\"");
+        assert_eq!(named, inside, "cube at y = {y}: {err}");
+    }
+}

@@ -824,6 +824,19 @@ impl World {
         &self.body_contact.colliders
     }
 
+    /// The bodies that start inside a static collider, deeper than the contact layer (which
+    /// the collider cannot push out: see [`overlap::inside_colliders`]), as (body, collider)
+    /// names.
+    pub fn bodies_inside_colliders(&self) -> Vec<(String, String)> {
+        overlap::inside_colliders(self)
+            .into_iter()
+            .map(|(b, c)| {
+                let collider = &self.body_contact.colliders[c];
+                (self.bodies[b].name.clone(), collider.name.clone())
+            })
+            .collect()
+    }
+
     /// How bodies push on each other and on colliders (default: the elastic layer).
     pub fn set_contact_model(&mut self, model: ContactModel) {
         self.body_contact.model = model;

@@ -144,13 +144,7 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
         )
     };
     let boxes: Vec<(V3, V3)> = vertices.iter().map(|v| bounds(v)).collect();
-    let surface = &world.surface;
-    let mut samples: Vec<Vec<V3>> = vec![Vec::new(); world.bodies.len()];
-    for i in 0..surface.len() {
-        if let Some(list) = samples.get_mut(surface.body[i] as usize) {
-            list.push(rest(&surface.nodes[i], &surface.weights[i]));
-        }
-    }
+    let samples = rest_samples(world);
     let solid_of = |m: usize| {
         let v = &vertices[m];
         let corners = meshes[m].display.iter().map(|t| t.map(|k| v[k as usize]));
@@ -195,6 +189,47 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
         }
     }
     StartOverlaps { pairs, solids }
+}
+
+/// Per body: its contact samples at rest.
+fn rest_samples(world: &World) -> Vec<Vec<V3>> {
+    let surface = &world.surface;
+    let mut samples: Vec<Vec<V3>> = vec![Vec::new(); world.bodies.len()];
+    for i in 0..surface.len() {
+        if let Some(list) = samples.get_mut(surface.body[i] as usize) {
+            let (ids, w) = (&surface.nodes[i], &surface.weights[i]);
+            list.push((0..8).map(|c| world.rest[ids[c] as usize] * w[c]).sum());
+        }
+    }
+    samples
+}
+
+/// The (body, static collider) pairs of `world` where a contact sample of the body lies
+/// inside the collider's closed mesh at rest, farther than the contact layer from its faces:
+/// the collider only puts back points that entered its faces or lie within the layer, so
+/// such a body stays inside it or is pushed out through a face.
+pub(crate) fn inside_colliders(world: &World) -> Vec<(usize, usize)> {
+    let depth = BEHIND_LAYERS * world.settings.layer.thickness_m;
+    let mut found = Vec::new();
+    if world.body_contact.colliders.is_empty() || depth.is_nan() || depth <= 0.0 {
+        return found;
+    }
+    let samples = rest_samples(world);
+    for (c, collider) in world.body_contact.colliders.iter().enumerate() {
+        let corners = (0..collider.triangles.len()).map(|t| collider.corners(t));
+        let mut solid = Solid::new(corners.collect(), 2.0 * depth);
+        for (b, points) in samples.iter().enumerate() {
+            let inside = points.iter().any(|p| {
+                (0..3).all(|k| p[k] >= collider.lo[k] && p[k] <= collider.hi[k])
+                    && solid.contains(p)
+                    && !solid.near_surface(p, depth)
+            });
+            if inside {
+                found.push((b, c));
+            }
+        }
+    }
+    found
 }
 
 #[cfg(test)]
