@@ -23,27 +23,15 @@ fn inside(p: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
 }
 
-/// `[x, v, box min, box max]`: contact sample `i`'s position and velocity (from the step's
-/// cache) when it lies in `[lo, hi]`, and the box its segment from the previous position
-/// sweeps, grown by `reach` (the grid query box).
-fn swept_sample(
+/// Contact sample `i`'s position and velocity (from the step's cache) when it lies in
+/// `[lo, hi]`.
+fn sample_in(
     bc: &BodyContact,
-    dt: f64,
     i: usize,
     (lo, hi): (&Vector3<f64>, &Vector3<f64>),
-    reach: f64,
-) -> Option<[Vector3<f64>; 4]> {
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
     let (x, v) = (bc.sample_x[i], bc.sample_v[i]);
-    if !inside(&x, lo, hi) {
-        return None;
-    }
-    let prev = x - v * dt;
-    Some([
-        x,
-        v,
-        x.inf(&prev).add_scalar(-reach),
-        x.sup(&prev).add_scalar(reach),
-    ])
+    inside(&x, lo, hi).then_some((x, v))
 }
 
 /// The triangles a point can meet, as [`best_face`] reads them.
@@ -321,7 +309,7 @@ pub(super) fn detect_pair(
     for &(i, end) in &list.samples {
         let (i, candidates) = (i as usize, &list.faces[start as usize..end as usize]);
         start = end;
-        let Some([x, v, _, _]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
+        let Some((x, v)) = sample_in(bc, i, (&lo, &hi)) else {
             continue;
         };
         let mesh = &mut bc.meshes[mb];
@@ -477,9 +465,15 @@ pub(super) fn detect_collider(
     let behind = BEHIND_LAYERS * h;
     bc.update_samples(input.surface, input.nodes, a);
     for i in bc.points[a].clone() {
-        let Some([x, v, qlo, qhi]) = swept_sample(bc, dt, i, (&lo, &hi), h.max(behind)) else {
+        let Some((x, v)) = sample_in(bc, i, (&lo, &hi)) else {
             continue;
         };
+        // The grid query box: the segment from the previous position, grown by the reach.
+        let (prev, reach) = (x - v * dt, h.max(behind));
+        let (qlo, qhi) = (
+            x.inf(&prev).add_scalar(-reach),
+            x.sup(&prev).add_scalar(reach),
+        );
         let col = &mut bc.colliders[c];
         col.grid.query(&qlo, &qhi, &mut bc.candidates);
         let probe = Probe {

@@ -137,15 +137,15 @@ impl BodyMesh {
                 p.sup(&q).sup(&r).add_scalar(m),
             )
         };
-        let (mut lo, mut hi) = (
-            Vector3::repeat(f64::INFINITY),
-            Vector3::repeat(f64::NEG_INFINITY),
+        // The region: every vertex's position grown by the margin (holds every box).
+        let (lo, hi) = x.iter().fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
         );
-        for t in &self.triangles {
-            let (tlo, thi) = grown(t);
-            lo = lo.inf(&tlo);
-            hi = hi.sup(&thi);
-        }
+        let (lo, hi) = (lo.add_scalar(-m), hi.add_scalar(m));
         let boxes = self.triangles.iter().enumerate().map(|(k, t)| {
             let (tlo, thi) = grown(t);
             (k as u32, tlo, thi)
