@@ -191,16 +191,17 @@ fn best_face(
     }
     // (segment parameter or distance, candidate order, hit)
     let mut crossing: Option<(f64, u32, FaceHit)> = None;
-    let mut near: Option<(f64, u32, FaceHit)> = None;
+    let mut near: Option<(Near, u32, FaceHit)> = None;
     let earlier = |best: &Option<(f64, u32, FaceHit)>, key: f64, order: u32| {
         best.as_ref()
             .is_none_or(|b| key < b.0 || (key == b.0 && order < b.1))
     };
     for bound in bounds.iter() {
         if !bound.may_cross
-            && near
-                .as_ref()
-                .is_some_and(|n| bound.distance >= n.0 * PRUNE_TIE)
+            && near.as_ref().is_some_and(|(n, _, _)| {
+                bound.distance > n.distance * (1.0 + DISTANCE_TIE)
+                    || (bound.distance >= n.distance * PRUNE_TIE && n.facing >= 1.0)
+            })
         {
             continue;
         }
@@ -227,31 +228,42 @@ fn best_face(
                 }
             }
         }
-        if let Some((d, normal, depth)) = near_contact(&probe, q, n, interior) {
-            if earlier(&near, d, bound.order) {
+        if let Some(found) = near_contact(&probe, q, n, interior) {
+            let wins = near
+                .as_ref()
+                .is_none_or(|(best, order, _)| found.beats(best, bound.order < *order));
+            if wins {
                 let hit = FaceHit {
                     tri: t,
                     bary,
-                    normal,
-                    depth,
+                    normal: found.normal,
+                    depth: found.depth,
                     velocity: vq,
                 };
-                near = Some((d, bound.order, hit));
+                near = Some((found, bound.order, hit));
             }
         }
     }
-    crossing.or(near).map(|(_, _, hit)| hit)
+    crossing
+        .map(|(_, _, hit)| hit)
+        .or(near.map(|(_, _, hit)| hit))
 }
+
+/// How far beyond a face's edge (in layer thicknesses, across the face) a point in front of
+/// it takes a normal between the face's and the direction from the edge: two flat faces
+/// pressed together meet along their rims, where a point that bulged a fraction of a
+/// millimetre past the other's rim took a normal tilted by a fifth towards the side, and
+/// the sideways pushes of the two rims of a stack of cubes did not cancel.
+const RIM_BLEND: f64 = 0.5;
+/// The cosine (45°) between a face's normal and the direction to a point beyond its edge
+/// above which the point counts as in front of the face for [`RIM_BLEND`] (a face beside
+/// the point, tying with the face under it at their shared edge, keeps the direction).
+const FACING_COSINE: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// The contact of `probe` with the nearest point `q` of a face with unit normal `n` (`interior`:
 /// `q` inside the face, not on an edge): `(distance, normal, depth)` when the point lies
 /// within the layer in front of it, or at most `behind` behind its interior.
-fn near_contact(
-    probe: &Probe,
-    q: Vector3<f64>,
-    n: Vector3<f64>,
-    interior: bool,
-) -> Option<(f64, Vector3<f64>, f64)> {
+fn near_contact(probe: &Probe, q: Vector3<f64>, n: Vector3<f64>, interior: bool) -> Option<Near> {
     let (x, h) = (probe.x, probe.h);
     let d = (x - q).norm();
     let side = (x - q).dot(&n);
@@ -259,19 +271,75 @@ fn near_contact(
         let normal = if interior || d <= 1e-12 {
             n
         } else {
-            (x - q) / d
+            // Beyond an edge: the direction to the point, turned towards the face's normal
+            // while the point is more in front of the face than beside it and within
+            // RIM_BLEND layers of its extent.
+            let toward = (x - q) / d;
+            if side < FACING_COSINE * d {
+                toward
+            } else {
+                let lateral = ((x - q) - n * side).norm();
+                let t = (lateral / (RIM_BLEND * h)).min(1.0);
+                (n * (1.0 - t) + toward * t).normalize()
+            }
         };
-        Some((d, normal, h - d))
+        let facing = if interior || d <= 1e-12 {
+            1.0
+        } else {
+            side / d
+        };
+        Some(Near {
+            distance: d,
+            facing,
+            normal,
+            depth: h - d,
+        })
     } else if side < 0.0 && interior && d < probe.behind {
-        Some((d, n, h + d))
+        Some(Near {
+            distance: d,
+            facing: 1.0,
+            normal: n,
+            depth: h + d,
+        })
     } else {
         None
     }
 }
 
 /// Faces whose distance bound lies this close (relative) to the nearest face so far are not
-/// looked at: coplanar faces of a flat region tie with it up to rounding.
+/// looked at when that face's nearest point is inside it: coplanar faces of a flat region tie
+/// with it up to rounding, and none can face the point better.
 const PRUNE_TIE: f64 = 1.0 - 1e-12;
+
+/// Distances this close (relative) are a tie, which the face facing the point better wins:
+/// faces that meet at an edge or a corner share its nearest point.
+const DISTANCE_TIE: f64 = 1e-9;
+
+/// A point's contact with one face, as [`near_contact`] finds it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Near {
+    distance: f64,
+    /// Cosine between the face's normal and the direction to the point (1 inside the face).
+    facing: f64,
+    normal: Vector3<f64>,
+    depth: f64,
+}
+
+impl Near {
+    /// Whether this contact beats `best`: nearer, or as near (within [`DISTANCE_TIE`]) and
+    /// facing the point better, or the same in both and `earlier`. The face under a point
+    /// that bulged past its rim, not the face beside it, gives the contact's normal.
+    fn beats(&self, best: &Near, earlier: bool) -> bool {
+        let (d, b) = (self.distance, best.distance);
+        if d > b * (1.0 + DISTANCE_TIE) {
+            return false;
+        }
+        if d < b * (1.0 - DISTANCE_TIE) {
+            return true;
+        }
+        self.facing > best.facing || (self.facing == best.facing && (d < b || (d == b && earlier)))
+    }
+}
 
 /// A sample's contact with a face: triangle, barycentric weights of the face point, normal
 /// out of the face's body, depth into the layer, the face point's velocity.
@@ -341,6 +409,21 @@ pub(super) fn detect_pair(
     neighbours::put_back(bc, (a, b), list);
 }
 
+/// Edges closer to parallel than this sine of their angle make no edge–edge contact: the
+/// plane through two nearly parallel edges turns with the least twist of either (a cube's
+/// rim resting on another's took a normal along the rim's side, which pushed the stack
+/// apart), and the samples along such an edge meet the faces beside the other edge anyway.
+const MIN_EDGE_SINE: f64 = 0.2;
+
+/// Closest points within this fraction of an edge's ends are its corner's, which the samples
+/// there already carry: two perpendicular edges meeting at corners (the rims of cubes side
+/// by side) passed the test on rounding and took a normal along neither face.
+const EDGE_END: f64 = 1e-6;
+
+/// Least cosine between the edge–edge normal and the edges' faces for the edges to face each
+/// other (perpendicular faces give rounding, not a direction).
+const EDGE_FACING: f64 = 1e-6;
+
 /// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` (the grid
 /// is rebuilt here over `b`'s edges). Only edges whose faces meet at an angle (face normals
 /// more than 30° from opposite): between parallel faces the samples' vertex–face contacts
@@ -400,12 +483,13 @@ pub(super) fn detect_edges(
                 continue;
             }
             let (s, r) = closest_between_segments(&p0, &p1, &q0, &q1);
-            if s <= 0.0 || s >= 1.0 || r <= 0.0 || r >= 1.0 {
+            let inside = EDGE_END..1.0 - EDGE_END;
+            if !inside.contains(&s) || !inside.contains(&r) {
                 continue;
             }
             let cross = (p1 - p0).cross(&(q1 - q0));
             let len = cross.norm();
-            if len <= 1e-9 * (p1 - p0).norm() * (q1 - q0).norm() {
+            if len <= MIN_EDGE_SINE * (p1 - p0).norm() * (q1 - q0).norm() {
                 continue;
             }
             let mut n = cross / len;
@@ -413,7 +497,7 @@ pub(super) fn detect_edges(
                 n = -n;
             }
             // Only edges facing each other: a's surface turned towards b.
-            if n.dot(&na) >= 0.0 || n.dot(&nb) <= 0.0 {
+            if n.dot(&na) >= -EDGE_FACING || n.dot(&nb) <= EDGE_FACING {
                 continue;
             }
             let (pa, pb) = (p0 + (p1 - p0) * s, q0 + (q1 - q0) * r);
@@ -540,7 +624,7 @@ mod tests {
     fn exhaustive(probe: Probe, candidates: &[u32], faces: &Moving) -> Option<(FaceHit, bool)> {
         let Probe { x, v, dt, h, .. } = probe;
         let mut crossing: Option<(f64, FaceHit)> = None;
-        let mut near: Option<(f64, FaceHit)> = None;
+        let mut near: Option<(Near, FaceHit)> = None;
         for &t in candidates {
             let t = t as usize;
             let (n, _) = faces.plane(t);
@@ -569,16 +653,16 @@ mod tests {
                     }
                 }
             }
-            if let Some((d, normal, depth)) = near_contact(&probe, q, n, interior) {
-                if near.is_none_or(|n| d < n.0) {
+            if let Some(found) = near_contact(&probe, q, n, interior) {
+                if near.is_none_or(|(best, _)| found.beats(&best, false)) {
                     let hit = FaceHit {
                         tri: t,
                         bary,
-                        normal,
-                        depth,
+                        normal: found.normal,
+                        depth: found.depth,
                         velocity: vq,
                     };
-                    near = Some((d, hit));
+                    near = Some((found, hit));
                 }
             }
         }
