@@ -343,16 +343,22 @@ fn the_energy_balance_flags_parts_thrown_apart_by_their_contact_layer() {
     assert_eq!(gain, 0.0);
 }
 
-/// Parts that start a centimetre apart (inside each other's contact layer) or overlapping by
-/// 5 mm separate slowly instead of flying apart (the layer's stored push threw such parts
-/// apart at metres per second).
+/// Parts that start a centimetre apart (inside each other's contact layer, within the
+/// contact pass's reach) do not touch: the contact constraints leave them where they are
+/// (the layer pushed them apart). Parts overlapping by 5 mm keep the layer, and separate
+/// slowly instead of flying apart (its stored push threw such parts apart at metres per
+/// second).
 #[test]
 fn parts_that_start_close_or_overlapping_separate_without_gaining_speed() {
-    for gap in [0.01, -0.005] {
-        let (fastest, opened) = neighbours(gap);
-        assert!(fastest < 0.2, "gap {gap}: fastest node {fastest} m/s");
-        assert!(opened > 0.0, "gap {gap}: the parts moved {opened} m apart");
-    }
+    let (fastest, opened) = neighbours(0.01);
+    assert!(fastest < 1e-9, "gap 0.01: fastest node {fastest} m/s");
+    assert!(
+        opened.abs() < 1e-9,
+        "gap 0.01: the parts moved {opened} m apart"
+    );
+    let (fastest, opened) = neighbours(-0.005);
+    assert!(fastest < 0.2, "overlap: fastest node {fastest} m/s");
+    assert!(opened > 0.0, "overlap: the parts moved {opened} m apart");
 }
 
 /// The same contact layer still bounces a body that falls onto another: a rubber cube dropped
@@ -696,8 +702,9 @@ fn parts_that_interpenetrate_at_the_start_are_glued_and_move_as_one() {
     }
 }
 
-/// Three rubber cubes stacked touching on the floor start inside each other's contact layers:
-/// they part gently and rest. Pushed into the floor by that parting, the bottom one jumped the
+/// Three rubber cubes stacked touching on the floor, or a centimetre apart, start inside
+/// each other's contact layers: they rest on each other within 3 s (the dropped stack's
+/// rubber rings for a second or two: its damping ratio is 0.05). Pushed into the floor by that parting, the bottom one jumped the
 /// stack at 1 m/s (105 J gained), and a node free for a substep met the layer again at full
 /// push (3 m/s); a stack a centimetre apart slid and wobbled for good.
 #[test]
@@ -716,20 +723,84 @@ fn a_stack_of_boxes_touching_at_the_start_parts_gently_and_rests() {
             xs.iter().map(|p| p.x).sum::<f64>() / xs.len() as f64
         };
         let x0 = top_x(&w);
-        let mut last = None;
-        for f in 1..=48 {
+        // Touching, they do not move apart; a centimetre apart, each falls onto the one
+        // below (the top one three centimetres in all: 0.77 m/s), and no faster.
+        let fall = (2.0 * 9.81 * 3.0 * gap).sqrt();
+        let mut last: Option<f64> = None;
+        for f in 1..=72 {
             let d = frame(&mut w, f);
             assert!(
-                d.max_speed < 0.5,
+                d.max_speed < 0.5f64.max(1.25 * fall),
                 "gap {gap}, frame {f}: {} m/s",
                 d.max_speed
             );
             assert_eq!(d.energy_gain, Some(0.0), "gap {gap}, frame {f}");
-            last = Some(d);
+            if f > 60 {
+                last = Some(last.map_or(d.kinetic_energy, |k| k.max(d.kinetic_energy)));
+            }
         }
-        let kinetic = last.unwrap().kinetic_energy;
-        assert!(kinetic < 0.05, "gap {gap}: still {kinetic} J after 2 s");
+        // At rest: at most 0.1 J over the last half second (2 cm/s for the stack's 410 kg;
+        // a dropped stack keeps a jitter of a few cm/s at its nodes, see issue 16's notes).
+        let kinetic = last.unwrap();
+        assert!(kinetic < 0.1, "gap {gap}: still {kinetic} J after 2.5 s");
         let slid = (top_x(&w) - x0).abs();
         assert!(slid < 0.01, "gap {gap}: the top cube slid {slid} m");
     }
+}
+
+/// A tower of four 20 cm rubber cubes a centimetre apart on the floor settles and stands,
+/// each cube resting on the one below, not floating on a contact layer: as elastic layers
+/// the contacts held the cubes 2.5 cm apart, and at 2 s the tower slid apart and fell (3.6
+/// m/s at 2.5 s).
+#[test]
+fn a_tower_of_cubes_a_centimetre_apart_settles_and_stands() {
+    let rubber = Material::preset("rubber").unwrap();
+    let (size, gap, cells) = (0.2, 0.01, 6);
+    let mut w = World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(size / cells as f64, &rubber, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    });
+    let mut cubes = Vec::new();
+    for i in 0..4 {
+        let y0 = i as f64 * (size + gap);
+        let m = mesh(box_mesh([0.0, y0, 0.0], [size, y0 + size, size]), cells);
+        cubes.push(add_part(&mut w, &format!("cube{i}"), &m, &rubber));
+    }
+    // A cube's bottom and top: the mean height of its four lowest and four highest corners.
+    let bounds = |w: &World, h: BodyHandle| {
+        let xs = w.body_positions(h);
+        let mut ys: Vec<f64> = xs.iter().map(|p| p.y).collect();
+        ys.sort_by(f64::total_cmp);
+        let low = ys[..4].iter().sum::<f64>() / 4.0;
+        let high = ys[ys.len() - 4..].iter().sum::<f64>() / 4.0;
+        let centre = xs.iter().sum::<Vector3<f64>>() / xs.len() as f64;
+        (low, high, centre)
+    };
+    let start = bounds(&w, cubes[3]).2;
+    for f in 1..=64 {
+        let d = frame(&mut w, f);
+        assert_eq!(d.inverted_cells, 0, "frame {f}");
+        // Settled: no node faster than 0.3 m/s (the contacts' jitter, a few mm a frame).
+        if f > 24 {
+            assert!(d.max_speed < 0.3, "frame {f}: {} m/s", d.max_speed);
+        }
+    }
+    let layer = w.settings.layer.thickness_m;
+    for i in 1..4 {
+        let below = bounds(&w, cubes[i - 1]).1;
+        let above = bounds(&w, cubes[i]).0;
+        let apart = above - below;
+        assert!(
+            (-0.1 * layer..0.25 * layer).contains(&apart),
+            "cube {i} rests {apart} m above the one below (layer {layer} m)"
+        );
+    }
+    let moved = bounds(&w, cubes[3]).2 - start;
+    let sideways = (moved.x * moved.x + moved.z * moved.z).sqrt();
+    assert!(sideways < 0.01, "the top cube moved {sideways} m sideways");
 }

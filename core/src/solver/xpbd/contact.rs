@@ -136,13 +136,13 @@ pub(crate) fn resolve_colliders(
     out
 }
 
-fn tangential(d: V3, n: &V3) -> V3 {
+pub(super) fn tangential(d: V3, n: &V3) -> V3 {
     d - n * d.dot(n)
 }
 
 /// The part of `slip` friction removes: all of it while it is within `limit` (static), else
 /// `limit` of its length (kinetic).
-fn friction(slip: V3, limit: f64) -> V3 {
+pub(super) fn friction(slip: V3, limit: f64) -> V3 {
     let length = slip.norm();
     if length <= limit {
         slip

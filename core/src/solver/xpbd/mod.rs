@@ -3,8 +3,9 @@
 //! a few tens of substeps per frame whatever the material's stiffness.
 //!
 //! A substep, in order (each stage its own pass over structure-of-arrays data):
-//! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the body–body
-//!    contact layer of [`super::body_contact`] (colliders too under `contact = "hertz"`), integrated implicitly per node,
+//! 1. **predict**: `v += Δt (g + f/m)` with the external forces (wind, and the contact
+//!    layer of [`super::body_contact`] for body pairs that start inside each other and under
+//!    `contact = "hertz"` (colliders too), integrated implicitly per node,
 //!    `Δv = f Δt / (m + k Δt²)`, so a stiff layer cannot destabilise the step; beyond
 //!    [`MAX_SEPARATION_SPEED`] apart its push moves the node without speeding it), `x += Δt v`;
 //! 2. **paths**: pinned and trajectory-bound nodes are put on their targets (strength 1: they
@@ -13,9 +14,10 @@
 //!    the springs of bodies without cells (cages built of springs only) as distance
 //!    constraints with compliance `1/k`; after the internal-torque cancellation, the
 //!    attachments of parts that interpenetrate at the start ([`glue`]);
-//! 4. **rigid contact**: nodes and display-surface points below the floor, the walls or
-//!    inside a capsule, and display-surface points that entered a static collider, are
-//!    projected out with Coulomb friction ([`contact`]);
+//! 4. **contact**: the body–body contacts the contact pass found at the substep's start,
+//!    as constraints with Coulomb friction ([`bodies`]); then nodes and display-surface points
+//!    below the floor, the walls or inside a capsule, and display-surface points that entered
+//!    a static collider, are projected out with Coulomb friction ([`contact`]);
 //! 5. **velocity**: `v = (x − x_prev) / Δt`, then the deformation damping towards each body's
 //!    rigid motion ([`super::deformation_damping`]; rigid motion is not damped).
 //!
@@ -24,6 +26,7 @@
 //! slots and reduces in fixed chunks, and the serial passes run in index order, so the result
 //! has the same bits with any thread count.
 
+mod bodies;
 mod cells;
 mod contact;
 mod glue;
@@ -492,10 +495,12 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     let mut model = world.xpbd.take().unwrap_or_default();
     // The contact log and the body–body layer forces, at the substep's start; static
     // colliders are constraints of `rigid_contacts` (Hertz's force law stays a force).
-    world.body_contact.collider_constraints =
-        world.body_contact.model == super::body_contact::ContactModel::ElasticLayer;
+    let layer_model = world.body_contact.model == super::body_contact::ContactModel::ElasticLayer;
+    world.body_contact.collider_constraints = layer_model;
+    world.body_contact.body_constraints = layer_model;
     log_contacts(world, &model, dt);
     let time = world.time;
+    let first = !model.predicted_once;
     let touch = RESTITUTION_CONTACT_TOLERANCE * model.shortest_edge;
     model
         .restitution
@@ -511,7 +516,17 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     solve_springs(world, &model, dt);
     cancel_internal_torque(world, &mut model);
     model.glue.solve(&mut world.nodes.position, &model.inv_mass);
-    let out = rigid_contacts(world, &mut model, time, dt);
+    model.begin_contacts();
+    let bodies = body_contacts(world, &mut model, first, dt);
+    let separation_work = separation_work
+        + if bodies.rested {
+            shift_nodes_bodies(world, &mut model)
+        } else {
+            0.0
+        };
+    let mut out = rigid_contacts(world, &mut model, time, dt);
+    out.touched |= bodies.touched;
+    out.max_depth = out.max_depth.max(bodies.depth);
     if out.touched {
         let (w, moved) = (&model.inv_mass, &model.moved);
         model
@@ -644,10 +659,15 @@ fn contact_kick(kick: V3, v: V3) -> V3 {
 /// boxes that starts a centimetre apart is lifted apart: the energy balance counts it as
 /// work done on the bodies).
 fn shift_bodies(world: &mut World, model: &mut Model) -> f64 {
-    let mut work = 0.0;
     if !world.body_contact.active {
-        return work;
+        return 0.0;
     }
+    shift_nodes_bodies(world, model)
+}
+
+/// [`shift_bodies`] of whatever `Model::shift` holds.
+fn shift_nodes_bodies(world: &mut World, model: &mut Model) -> f64 {
+    let mut work = 0.0;
     let gravity = world.settings.gravity;
     let nodes = &mut world.nodes;
     for body in &world.bodies {
@@ -768,7 +788,50 @@ fn cancel_internal_torque(world: &mut World, model: &mut Model) {
     }
 }
 
-/// Stage 4: contact with the floor, walls and capsules (nodes in parallel, display-surface
+impl Model {
+    /// Clear the marks of the contact stages (the nodes they move, how far).
+    fn begin_contacts(&mut self) {
+        self.moved.fill(false);
+        if self.contact_shifted {
+            self.contact_shift.fill(V3::zeros());
+            self.contact_shifted = false;
+        }
+    }
+}
+
+/// Stage 4a: contact between bodies ([`bodies`]); at the first substep, the nodes in
+/// contact are the ones that separate gently (see [`MAX_SEPARATION_SPEED`]).
+fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> bodies::Touch {
+    let (constraints, stencil) = world.body_contact.constraints();
+    if constraints.is_empty() {
+        return bodies::Touch::default();
+    }
+    if first {
+        for &(k, _) in stencil {
+            model.overlapping[k as usize] = true;
+        }
+    }
+    let contacts = bodies::BodyContacts {
+        constraints,
+        stencil,
+        inv_mass: &model.inv_mass,
+        previous: &model.previous,
+        friction: world.settings.layer.friction,
+        gap: bodies::REST_GAP_LAYERS * world.settings.layer.thickness_m,
+        separating: model
+            .separated_by
+            .map(|_| (&model.overlapping[..], MAX_SEPARATION_SPEED * dt)),
+    };
+    model.contact_shifted = true;
+    contacts.solve(
+        &mut world.nodes.position,
+        &mut model.moved,
+        &mut model.contact_shift,
+        &mut model.shift,
+    )
+}
+
+/// Stage 4b: contact with the floor, walls and capsules (nodes in parallel, display-surface
 /// points serially in point order).
 fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> StepOutput {
     model.capsules.clear();
@@ -782,13 +845,8 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     let bc = &mut world.body_contact;
     let colliders = bc.collider_constraints && !bc.colliders.is_empty();
     if surfaces.planes.is_empty() && surfaces.capsules.is_empty() && !colliders {
-        if model.contact_shifted {
-            model.contact_shift.fill(V3::zeros());
-            model.contact_shifted = false;
-        }
         return out;
     }
-    model.moved.fill(false);
     model.contact_shifted = true;
     let inv_dt2 = 1.0 / (dt * dt);
     let (w, prev) = (&model.inv_mass[..], &model.previous[..]);
@@ -807,15 +865,13 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
             let mut work = 0.0;
             for (j, ((x, moved), shift)) in xs.iter_mut().zip(moved).zip(shifts).enumerate() {
                 let i = chunk * PAR_CHUNK + j;
-                *moved = false;
-                *shift = V3::zeros();
                 if !takes[i] || w[i] <= 0.0 {
                     continue;
                 }
                 let c = surfaces.resolve(*x, prev[i]);
                 if c.depth > 0.0 {
                     *x += c.correction;
-                    *shift = c.correction;
+                    *shift += c.correction;
                     *moved = true;
                     deepest = deepest.max(c.depth);
                     force += c.from_capsules * (mass[i] * inv_dt2);

@@ -1,0 +1,93 @@
+//! Body–body contacts as constraints of the XPBD step (issue 16, "contact as constraints").
+//!
+//! The contact pass finds a contact between a feature of one body (a surface sample, a point
+//! of a face, a point of an edge) and a feature of its partner, with the normal from the
+//! partner into the body's side. Every feature is a fixed linear combination of lattice
+//! nodes (a sample: its cell's eight trilinear weights; a face point: its triangle's
+//! barycentric weights times each vertex's eight), so the pair's separation along the normal
+//! is `C(x) = n · Σ_k s_k x_k` over one signed *stencil* (the body's weights positive, the
+//! partner's negative, each node once). The step keeps `C ≥ 0`: the two surfaces may touch
+//! but not pass each other. Unlike the elastic layer (a stiff spring that rests the bodies
+//! half a cell apart and returns what an impact stored in it), the constraint stores no
+//! energy: stacked bodies rest on each other, and a pile dropped together does not throw its
+//! parts apart.
+
+use super::{BodyContact, Feature};
+use crate::solver::world::SurfacePoints;
+use nalgebra::Vector3;
+use std::ops::Range;
+
+/// One contact to keep: `normal · Σ s_k x_k ≥ 0` over `stencil` (a range of
+/// [`BodyContact::stencil`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BodyConstraint {
+    pub normal: Vector3<f64>,
+    pub stencil: Range<u32>,
+}
+
+impl BodyContact {
+    /// Keep contact `a`–`b` (normal from `b` into `a`'s side) as a constraint of this step.
+    pub(super) fn constrain(
+        &mut self,
+        surface: &SurfacePoints,
+        a: Feature,
+        b: Feature,
+        normal: Vector3<f64>,
+    ) {
+        let start = self.stencil.len();
+        self.push_feature(surface, a, 1.0);
+        self.push_feature(surface, b, -1.0);
+        // Each node once (a face's corners often share cells): the constraint's inverse
+        // mass `Σ s_k² w_k` needs the summed weight of a node, not its parts.
+        let entries = &mut self.stencil[start..];
+        entries.sort_unstable_by_key(|&(node, _)| node);
+        let mut kept = start;
+        for i in start..self.stencil.len() {
+            let (node, weight) = self.stencil[i];
+            if kept > start && self.stencil[kept - 1].0 == node {
+                self.stencil[kept - 1].1 += weight;
+            } else {
+                self.stencil[kept] = (node, weight);
+                kept += 1;
+            }
+        }
+        self.stencil.truncate(kept);
+        self.constraints.push(BodyConstraint {
+            normal,
+            stencil: start as u32..kept as u32,
+        });
+    }
+
+    /// Append `feature`'s nodes and weights times `sign` to the stencil (zero weights left out).
+    fn push_feature(&mut self, surface: &SurfacePoints, feature: Feature, sign: f64) {
+        let stencil = &mut self.stencil;
+        let mut push = |ids: &[u32; 8], w: &[f64; 8], scale: f64| {
+            for c in 0..8 {
+                if w[c] * scale != 0.0 {
+                    stencil.push((ids[c], w[c] * scale * sign));
+                }
+            }
+        };
+        match feature {
+            Feature::Point(i) => push(&surface.nodes[i], &surface.weights[i], 1.0),
+            Feature::Face { mesh, tri, bary } => {
+                let m = &self.meshes[mesh];
+                for (&v, &w) in m.triangles[tri].iter().zip(&bary) {
+                    push(&m.nodes[v as usize], &m.weights[v as usize], w);
+                }
+            }
+            Feature::Edge { mesh, a, b, s } => {
+                let m = &self.meshes[mesh];
+                push(&m.nodes[a as usize], &m.weights[a as usize], 1.0 - s);
+                push(&m.nodes[b as usize], &m.weights[b as usize], s);
+            }
+            Feature::Static => {}
+        }
+    }
+
+    /// This step's body–body contact constraints and their stencils (empty unless
+    /// `body_constraints`).
+    pub(crate) fn constraints(&self) -> (&[BodyConstraint], &[(u32, f64)]) {
+        (&self.constraints, &self.stencil)
+    }
+}

@@ -1,0 +1,112 @@
+//! Contact between bodies as inequality constraints of the XPBD step (stage 4a): each
+//! contact the body–body pass found at the substep's start
+//! ([`crate::solver::body_contact::BodyConstraint`]) keeps its two features from passing each
+//! other along its normal, `C = n · Σ s_k x_k ≥ g` (a small gap `g`, [`REST_GAP_LAYERS`]), with no compliance, and Coulomb friction
+//! on their relative slip over the substep as the floor has it ([`super::contact`]): static
+//! while the slip is within μ times the normal correction, else shortened by that much.
+//! The correction of the pair's separation `δ` moves node `k` by `s_k w_k δ / Σ s_j² w_j`
+//! (`w` the inverse masses), so the separation changes by exactly `δ` and momentum is
+//! conserved. Serial, in the order the pass found the contacts: the same bits on any thread
+//! count.
+//!
+//! Parts that start inside each other's surfaces (a shallow overlap the glue does not take)
+//! separate at [`super::MAX_SEPARATION_SPEED`] at most while their nodes carry the start's
+//! overlap flag, not at their depth over one substep: such a contact stops its features'
+//! approach and opens them at that speed; the rest of its correction is left in `rest`
+//! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
+
+use super::contact::{friction, tangential};
+use crate::solver::body_contact::BodyConstraint;
+use nalgebra::Vector3;
+
+type V3 = Vector3<f64>;
+
+/// The gap the constraints keep between two surfaces, in contact layer thicknesses. Not
+/// zero: a sample resting exactly on its partner's surface has no direction to it where the
+/// nearest point is an edge (a cube's rim under the rim of a cube stacked on it ties between
+/// the top face and a side face), and a side face's normal would push the stack apart.
+/// A point a little way off an edge has the direction to it, the same from both faces.
+pub(crate) const REST_GAP_LAYERS: f64 = 0.1;
+
+/// What the constraints read.
+pub(crate) struct BodyContacts<'a> {
+    pub constraints: &'a [BodyConstraint],
+    pub stencil: &'a [(u32, f64)],
+    pub inv_mass: &'a [f64],
+    /// Node positions at the substep's start.
+    pub previous: &'a [V3],
+    pub friction: f64,
+    /// How far apart the constraints keep the surfaces, m ([`REST_GAP_LAYERS`] of the layer).
+    pub gap: f64,
+    /// Per node, while parts that started overlapping are still separating: in contact at
+    /// the start; and how far such a contact may open in one substep, m.
+    pub separating: Option<(&'a [bool], f64)>,
+}
+
+/// What the constraints did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Touch {
+    pub touched: bool,
+    /// Deepest a contact had passed its partner's surface before its correction, m.
+    pub depth: f64,
+    /// Whether a contact left part of its correction in `rest`.
+    pub rested: bool,
+}
+
+impl BodyContacts<'_> {
+    /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and adding
+    /// their corrections to `shift`, and what separating contacts leave to `rest`.
+    pub(crate) fn solve(
+        &self,
+        x: &mut [V3],
+        moved: &mut [bool],
+        shift: &mut [V3],
+        rest: &mut [V3],
+    ) -> Touch {
+        let mut out = Touch::default();
+        for c in self.constraints {
+            let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
+            let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
+            for &(node, s) in stencil {
+                let k = node as usize;
+                d += x[k] * s;
+                d_prev += self.previous[k] * s;
+                inverse_mass += s * s * self.inv_mass[k];
+            }
+            if inverse_mass <= 0.0 {
+                continue;
+            }
+            let gap = c.normal.dot(&d);
+            if gap >= self.gap || gap.is_nan() {
+                continue;
+            }
+            let mut push = self.gap - gap;
+            if let Some((overlapping, opening)) = self.separating {
+                if stencil.iter().any(|&(k, _)| overlapping[k as usize]) {
+                    let moving = (c.normal.dot(&d_prev) + opening - gap).clamp(0.0, push);
+                    let left = c.normal * ((push - moving) / inverse_mass);
+                    for &(node, s) in stencil {
+                        rest[node as usize] += left * (s * self.inv_mass[node as usize]);
+                    }
+                    out.rested |= moving < push;
+                    push = moving;
+                }
+            }
+            out.touched = true;
+            out.depth = out.depth.max(-gap);
+            if push <= 0.0 {
+                continue;
+            }
+            let slip = tangential(d + c.normal * push - d_prev, &c.normal);
+            let correction = c.normal * push - friction(slip, self.friction * push);
+            for &(node, s) in stencil {
+                let k = node as usize;
+                let step = correction * (s * self.inv_mass[k] / inverse_mass);
+                x[k] += step;
+                shift[k] += step;
+                moved[k] = true;
+            }
+        }
+        out
+    }
+}
