@@ -420,9 +420,11 @@ const MIN_EDGE_SINE: f64 = 0.2;
 /// by side) passed the test on rounding and took a normal along neither face.
 const EDGE_END: f64 = 1e-6;
 
-/// Least cosine between the edge–edge normal and the edges' faces for the edges to face each
-/// other (perpendicular faces give rounding, not a direction).
-const EDGE_FACING: f64 = 1e-6;
+/// Least cosine between the edge–edge normal and each edge's face for the edges to face each
+/// other. A face perpendicular to the normal gives no direction: its sign is the deformation's
+/// (1e-4 in cubes resting side by side, which turned a normal through a centimetre's gap and
+/// pulled them together).
+const EDGE_FACING: f64 = 0.2;
 
 /// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` (the grid
 /// is rebuilt here over `b`'s edges). Only edges whose faces meet at an angle (face normals
