@@ -6,8 +6,8 @@
 //! nodes (a sample: its cell's eight trilinear weights; a face point: its triangle's
 //! barycentric weights times each vertex's eight), so the pair's separation along the normal
 //! is `C(x) = n · Σ_k s_k x_k` over one signed *stencil* (the body's weights positive, the
-//! partner's negative, each node once). The step keeps `C ≥ 0`: the two surfaces may touch
-//! but not pass each other. Unlike the elastic layer (a stiff spring that rests the bodies
+//! partner's negative, each node once). The step keeps `C ≥ g`, a small gap
+//! (`xpbd::bodies`): the two surfaces may touch but not pass each other. Unlike the elastic layer (a stiff spring that rests the bodies
 //! half a cell apart and returns what an impact stored in it), the constraint stores no
 //! energy: stacked bodies rest on each other, and a pile dropped together does not throw its
 //! parts apart.
@@ -17,7 +17,7 @@ use crate::solver::world::SurfacePoints;
 use nalgebra::Vector3;
 use std::ops::Range;
 
-/// One contact to keep: `normal · Σ s_k x_k ≥ 0` over `stencil` (a range of
+/// One contact to keep: `normal · Σ s_k x_k ≥ g` over `stencil` (a range of
 /// [`BodyContact::stencil`]).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct BodyConstraint {

@@ -261,32 +261,28 @@ const RIM_BLEND: f64 = 0.5;
 const FACING_COSINE: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// The contact of `probe` with the nearest point `q` of a face with unit normal `n` (`interior`:
-/// `q` inside the face, not on an edge): `(distance, normal, depth)` when the point lies
-/// within the layer in front of it, or at most `behind` behind its interior.
+/// `q` inside the face, not on an edge), when the point lies within the layer in front of it,
+/// or at most `behind` behind its interior.
 fn near_contact(probe: &Probe, q: Vector3<f64>, n: Vector3<f64>, interior: bool) -> Option<Near> {
     let (x, h) = (probe.x, probe.h);
     let d = (x - q).norm();
     let side = (x - q).dot(&n);
     if side >= 0.0 && d < h {
-        let normal = if interior || d <= 1e-12 {
-            n
+        let (normal, facing) = if interior || d <= 1e-12 {
+            (n, 1.0)
         } else {
             // Beyond an edge: the direction to the point, turned towards the face's normal
             // while the point is more in front of the face than beside it and within
             // RIM_BLEND layers of its extent.
             let toward = (x - q) / d;
-            if side < FACING_COSINE * d {
+            let normal = if side < FACING_COSINE * d {
                 toward
             } else {
                 let lateral = ((x - q) - n * side).norm();
                 let t = (lateral / (RIM_BLEND * h)).min(1.0);
                 (n * (1.0 - t) + toward * t).normalize()
-            }
-        };
-        let facing = if interior || d <= 1e-12 {
-            1.0
-        } else {
-            side / d
+            };
+            (normal, side / d)
         };
         Some(Near {
             distance: d,

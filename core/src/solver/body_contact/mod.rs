@@ -20,7 +20,8 @@
 //!
 //! **Response.** Under XPBD with [`ContactModel::ElasticLayer`] (the default), a contact
 //! between two bodies is a constraint of the step ([`constraint`]: the pair's features may
-//! touch, not pass each other), found within half a layer of the other surface; a pair
+//! touch, not pass each other), found within three quarters of a layer of the other
+//! surface; a pair
 //! whose surfaces are inside each other at the first pass keeps the layer below.
 //! [`ContactModel::ElasticLayer`] as forces (the papers' integrators): the layer lies *outside* the
 //! partner's surface (a point is pushed once it is closer than the layer thickness `h`), with
@@ -192,11 +193,10 @@ impl BodyContact {
     }
 
     /// Whether the contacts of bodies `a < b` are constraints of the step, not the layer's
-    /// forces (once the first pass has found the pairs that start inside each other).
+    /// forces (`layer_pairs` as the first pass found them).
     fn constrains(&self, a: usize, b: usize) -> bool {
         self.body_constraints
             && self.model == ContactModel::ElasticLayer
-            && self.step > 1
             && !self.layer_pairs.contains(&(a, b))
     }
 
@@ -445,7 +445,8 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             if !apart && has_faces {
                 // Constraints need contacts only a little ahead of the gap they keep: a
                 // thinner reach looks at a quarter of the faces around a resting sample.
-                let thin = bc.constrains(a, b).then_some(ContactLayer {
+                // The first pass looks a whole layer deep for parts inside each other.
+                let thin = (bc.step > 1 && bc.constrains(a, b)).then_some(ContactLayer {
                     thickness_m: h * CONSTRAINT_REACH,
                     ..*layer
                 });
@@ -543,15 +544,13 @@ fn respond(
         }
         return;
     }
-    let hertz_model = bc.model == ContactModel::Hertz;
     if let Some(b) = b {
         let inside = bc.contacts.iter().any(|c| c.depth > layer.thickness_m);
         if bc.step == 1 && inside && !bc.layer_pairs.contains(&(a, b)) {
             bc.layer_pairs.push((a, b));
         }
     }
-    let layered = b.is_some_and(|b| bc.layer_pairs.contains(&(a, b)));
-    let constrain = b.is_some() && bc.body_constraints && !hertz_model && !layered;
+    let constrain = b.is_some_and(|b| bc.constrains(a, b));
     let push = match b {
         Some(_) => !constrain,
         None => !bc.collider_constraints,

@@ -1,9 +1,10 @@
 //! Contact between bodies as inequality constraints of the XPBD step (stage 4a): each
 //! contact the body–body pass found at the substep's start
 //! ([`crate::solver::body_contact::BodyConstraint`]) keeps its two features from passing each
-//! other along its normal, `C = n · Σ s_k x_k ≥ g` (a small gap `g`, [`REST_GAP_LAYERS`]), with no compliance, and Coulomb friction
-//! on their relative slip over the substep as the floor has it ([`super::contact`]): static
-//! while the slip is within μ times the normal correction, else shortened by that much.
+//! other along its normal, `C = n · Σ s_k x_k ≥ g` (a small gap `g`, [`REST_GAP_LAYERS`]),
+//! with no compliance, and Coulomb friction on their relative slip over the substep as the
+//! floor has it ([`super::contact`]): static while the slip is within μ times the normal
+//! correction, else shortened by that much.
 //! The correction of the pair's separation `δ` moves node `k` by `s_k w_k δ / Σ s_j² w_j`
 //! (`w` the inverse masses), so the separation changes by exactly `δ` and momentum is
 //! conserved. Serial, in the order the pass found the contacts: the same bits on any thread
