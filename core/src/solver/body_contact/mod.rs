@@ -39,9 +39,10 @@
 //!
 //! **Forces** go to nodes by the embedding weights: a sample to its cell's 8 nodes (trilinear),
 //! a face point to its triangle's vertices (barycentric) and each vertex to its cell's nodes;
-//! the partner gets the opposite force, so momentum is conserved exactly. Everything is serial,
-//! in body, point and triangle order: the same bits on any thread count. Scratch buffers are
-//! kept between steps.
+//! the partner gets the opposite force, so momentum is conserved exactly. The pairs' vertex–face
+//! searches run side by side once prepared (each only reads the contact state and yields its
+//! contacts in its samples' order); everything else is serial, in body, point and triangle
+//! order: the same bits on any thread count. Scratch buffers are kept between steps.
 
 use super::contact::{layer_force, ContactLayer};
 use super::contact_log::{observe_rigid, ContactLog, ContactPartner, RigidScene};
@@ -54,6 +55,7 @@ use crate::collide::{BoxGrid, StaticCollider};
 use crate::hertz::{self, SurfaceEdge, SurfaceRadius};
 use crate::lattice::{Embedding, Lattice};
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// How bodies push on each other and on static colliders.
@@ -423,38 +425,26 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
         bc.max_speed[b] = speed2.sqrt();
     }
     let n_bodies = bodies.len();
-    let reach = h.max(BEHIND_LAYERS * h);
+    let searches = begin_searches(bc, input);
+    let found = search_pairs(bc, input.surface, &searches);
+    let mut next = searches.into_iter().zip(found).peekable();
     for a in 0..n_bodies {
         for b in a + 1..n_bodies {
-            let (alo, ahi) = bc.boxes[a];
-            let (blo, bhi) = bc.boxes[b];
-            let lo = alo.sup(&blo).add_scalar(-h);
-            let hi = ahi.inf(&bhi).add_scalar(h);
-            // A contact needs a point of one within the reach of the other's surface, or
-            // crossing it in the step: boxes farther apart than that (with both moving at
-            // their fastest node) cannot touch. (`[lo, hi]` is both boxes grown by `h`: it
-            // admits gaps up to `2h`.)
-            let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
-            let sweep = (bc.max_speed[a] + bc.max_speed[b]) * dt;
-            let apart = gap.is_nan()
-                || gap > reach + sweep
-                || (0..3).any(|k| lo[k] > hi[k])
-                || bc.ignored_pairs.contains(&(a, b));
-            let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
             bc.contacts.clear();
-            if !apart && has_faces {
-                // Constraints need contacts only a little ahead of the gap they keep: a
-                // thinner reach looks at a quarter of the faces around a resting sample.
-                // The first pass looks a whole layer deep for parts inside each other.
-                let thin = (bc.step > 1 && bc.constrains(a, b)).then_some(ContactLayer {
-                    thickness_m: h * CONSTRAINT_REACH,
+            if let Some((pair, contacts)) = next.next_if(|(p, _)| (p.a, p.b) == (a, b)) {
+                bc.contacts.extend(contacts);
+                for search in pair.searches.into_iter().flatten() {
+                    detect::end_pair(bc, search);
+                }
+                let layer = ContactLayer {
+                    thickness_m: pair.h,
                     ..*layer
-                });
-                let thin_input = thin.as_ref().map(|layer| PassInput { layer, ..*input });
-                let pass = thin_input.as_ref().unwrap_or(input);
-                detect_pair(bc, pass, (a, b), false, lo, hi);
-                detect_pair(bc, pass, (b, a), true, lo, hi);
-                detect_edges(bc, pass, a, b, lo, hi);
+                };
+                let pass = PassInput {
+                    layer: &layer,
+                    ..*input
+                };
+                detect_edges(bc, &pass, a, b, pair.lo, pair.hi);
             }
             respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
         }
@@ -482,6 +472,94 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             );
         }
     }
+}
+
+/// The vertex–face searches of one pair of bodies `a < b` that may touch: `a`'s samples
+/// against `b`'s faces and the other way round, within `[lo, hi]`, at layer thickness `h`
+/// (thinner for pairs whose contacts are constraints, see [`CONSTRAINT_REACH`]).
+struct PairSearches {
+    a: usize,
+    b: usize,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+    h: f64,
+    searches: [Option<detect::PairSearch>; 2],
+}
+
+/// Broad phase: the pairs of bodies whose boxes come within reach of each other (a contact
+/// needs a point of one within the reach of the other's surface, or crossing it in the step:
+/// boxes farther apart than that, with both moving at their fastest node, cannot touch), in
+/// pair order, each with its searches prepared.
+fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> {
+    let h = input.layer.thickness_m;
+    let reach = h.max(BEHIND_LAYERS * h);
+    let n_bodies = input.bodies.len();
+    let mut out = Vec::new();
+    for a in 0..n_bodies {
+        for b in a + 1..n_bodies {
+            let (alo, ahi) = bc.boxes[a];
+            let (blo, bhi) = bc.boxes[b];
+            // `[lo, hi]` is both boxes grown by `h`: it admits gaps up to `2h`.
+            let lo = alo.sup(&blo).add_scalar(-h);
+            let hi = ahi.inf(&bhi).add_scalar(h);
+            let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
+            let sweep = (bc.max_speed[a] + bc.max_speed[b]) * input.dt;
+            let apart = gap.is_nan()
+                || gap > reach + sweep
+                || (0..3).any(|k| lo[k] > hi[k])
+                || bc.ignored_pairs.contains(&(a, b));
+            let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
+            if apart || !has_faces {
+                continue;
+            }
+            // Constraints need contacts only a little ahead of the gap they keep: a thinner
+            // reach looks at a quarter of the faces around a resting sample. The first pass
+            // looks a whole layer deep for parts inside each other.
+            let thin = bc.step > 1 && bc.constrains(a, b);
+            let layer = ContactLayer {
+                thickness_m: if thin { h * CONSTRAINT_REACH } else { h },
+                ..*input.layer
+            };
+            let pass = PassInput {
+                layer: &layer,
+                ..*input
+            };
+            let searches = [
+                detect::begin_pair(bc, &pass, (a, b), false, lo, hi),
+                detect::begin_pair(bc, &pass, (b, a), true, lo, hi),
+            ];
+            out.push(PairSearches {
+                a,
+                b,
+                lo,
+                hi,
+                h: layer.thickness_m,
+                searches,
+            });
+        }
+    }
+    out
+}
+
+/// The vertex–face contacts of each pair's searches (`a`'s samples first), pairs side by
+/// side: each search only reads the contact state and yields its contacts in its samples'
+/// order, so the result is the same on any thread count.
+fn search_pairs(
+    bc: &BodyContact,
+    surface: &SurfacePoints,
+    pairs: &[PairSearches],
+) -> Vec<Vec<Contact>> {
+    pairs
+        .par_iter()
+        .map_init(Vec::new, |bounds, pair| {
+            let searches = pair.searches.iter().flatten();
+            let mut out = Vec::with_capacity(searches.map(detect::PairSearch::samples).sum());
+            for search in pair.searches.iter().flatten() {
+                detect::pair_contacts(bc, surface, search, bounds, &mut out);
+            }
+            out
+        })
+        .collect()
 }
 
 /// Add force `f` acting at `feature` to the nodes.

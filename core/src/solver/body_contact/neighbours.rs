@@ -13,6 +13,11 @@
 //! displacement since. A list is used while `drift + sweep ≤ skin`; it holds every face whose
 //! distance bound was within `reach + skin`. The search then sees every face it could pick.
 //!
+//! **Ranked.** Each sample's faces are kept nearest first by their distance bound when the
+//! list was built, with that bound: the search stops at the first face that was farther than
+//! the contact it has found plus both bodies' drift since (or than the step's travel, for a
+//! crossing), so a resting sample looks at the faces under it only.
+//!
 //! **Drift.** Each body keeps an anchor (its node positions at some step) and measures its
 //! largest node displacement from it once a step; once that passes a quarter of the skin the
 //! body re-anchors, which invalidates its lists. A list remembers both bodies' drift when it
@@ -59,11 +64,19 @@ pub(super) struct FaceList {
     drift_at_build: f64,
     /// The skin it was built with, m (none while the bodies move fast).
     skin: f64,
-    /// The step it was last looked at.
+    /// The step it was last looked at, and the step it was built in (its faces' boxes and
+    /// planes are that step's).
     used: u64,
+    pub built: u64,
     /// Per sample with faces: its index and the end of its faces in `faces`.
     pub samples: Vec<(u32, u32)>,
+    /// Each sample's faces, nearest first by `lower`: the face's distance bound from the
+    /// sample when the list was built.
     pub faces: Vec<u32>,
+    pub lower: Vec<f64>,
+    /// How far the sample and the faces may have moved since the list was built, in the
+    /// step it was last taken for, m (0 when built in that step).
+    pub slack: f64,
 }
 
 impl Neighbours {
@@ -138,8 +151,11 @@ pub(super) fn take(
         && list.drift_at_build + drift_a + drift_b + sweep <= list.skin;
     list.used = step;
     if fresh {
+        list.slack = list.drift_at_build + drift_a + drift_b;
         return list;
     }
+    list.slack = 0.0;
+    list.built = step;
     // A list pays only if it outlives a few steps: while the bodies move fast enough to
     // re-anchor sooner, it is built without a skin (the plain search, for this step only).
     let calm = sweep * LIST_STEPS <= ANCHOR_DRIFT * skin;
@@ -149,6 +165,8 @@ pub(super) fn take(
     list.skin = skin;
     list.samples.clear();
     list.faces.clear();
+    list.lower.clear();
+    let mut ranked: Vec<(f64, u32)> = Vec::new();
     let (wide_lo, wide_hi) = (lo.add_scalar(-skin), hi.add_scalar(skin));
     let mesh = &mut bc.meshes[mb];
     let range = reach + skin;
@@ -161,15 +179,19 @@ pub(super) fn take(
         mesh.grid.query(&qlo, &qhi, &mut bc.candidates);
         mesh.refresh(&bc.candidates);
         let faces = MeshFaces(mesh);
-        let before = list.faces.len();
-        let near = bc
-            .candidates
-            .iter()
-            .filter(|&&t| faces.distance_bound(t as usize, &x) <= range);
-        list.faces.extend(near);
-        if list.faces.len() > before {
-            list.samples.push((i as u32, list.faces.len() as u32));
+        ranked.clear();
+        ranked.extend(bc.candidates.iter().filter_map(|&t| {
+            let bound = faces.distance_bound(t as usize, &x);
+            (bound <= range).then_some((bound, t))
+        }));
+        if ranked.is_empty() {
+            continue;
         }
+        // Nearest first (a stable sort: equal bounds keep the grid's order).
+        ranked.sort_by(|p, q| p.0.total_cmp(&q.0));
+        list.faces.extend(ranked.iter().map(|&(_, t)| t));
+        list.lower.extend(ranked.iter().map(|&(bound, _)| bound));
+        list.samples.push((i as u32, list.faces.len() as u32));
     }
     list
 }
