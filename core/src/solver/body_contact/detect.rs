@@ -453,8 +453,11 @@ pub(super) fn begin_pair(
     bc.meshes[mb].update(input.nodes, bc.step);
     bc.update_samples(input.surface, input.nodes, a);
     let list = neighbours::take(bc, input, (a, b, mb), lo, hi);
-    // A list built in this step has refreshed its faces already.
-    if list.built != bc.step {
+    // A list built in this step has refreshed its faces already; one that names the mesh's
+    // faces many times over refreshes them all, once.
+    if list.built != bc.step && list.faces.len() >= bc.meshes[mb].triangles.len() {
+        bc.meshes[mb].refresh_all();
+    } else if list.built != bc.step {
         let mut start = 0;
         for &(i, end) in &list.samples {
             if sample_in(bc, i as usize, (&lo, &hi)).is_some() {

@@ -158,27 +158,39 @@ impl BodyMesh {
     /// step, when a query first finds it).
     pub fn refresh(&mut self, candidates: &[u32]) {
         for &t in candidates {
-            let t = t as usize;
-            if self.face_stamp[t] == self.stamp {
-                continue;
-            }
-            self.face_stamp[t] = self.stamp;
-            let tri = self.triangles[t];
-            let [p, q, r] = tri.map(|i| self.x[i as usize]);
-            let normal = triangle_normal(&p, &q, &r);
-            let speed = tri
-                .iter()
-                .map(|&i| self.v[i as usize].norm_squared())
-                .fold(0.0, f64::max)
-                .sqrt();
-            self.faces[t] = FaceBox {
-                lo: p.inf(&q).inf(&r),
-                hi: p.sup(&q).sup(&r),
-                normal,
-                offset: normal.dot(&p),
-                speed,
-            };
+            self.refresh_face(t as usize);
         }
+    }
+
+    /// Every triangle's box, plane and speed in this step (cheaper than [`Self::refresh`]
+    /// over lists that name the mesh's faces many times over).
+    pub fn refresh_all(&mut self) {
+        for t in 0..self.triangles.len() {
+            self.refresh_face(t);
+        }
+    }
+
+    #[inline]
+    fn refresh_face(&mut self, t: usize) {
+        if self.face_stamp[t] == self.stamp {
+            return;
+        }
+        self.face_stamp[t] = self.stamp;
+        let tri = self.triangles[t];
+        let [p, q, r] = tri.map(|i| self.x[i as usize]);
+        let normal = triangle_normal(&p, &q, &r);
+        let speed = tri
+            .iter()
+            .map(|&i| self.v[i as usize].norm_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        self.faces[t] = FaceBox {
+            lo: p.inf(&q).inf(&r),
+            hi: p.sup(&q).sup(&r),
+            normal,
+            offset: normal.dot(&p),
+            speed,
+        };
     }
 
     pub fn corners(&self, t: usize) -> [Vector3<f64>; 3] {

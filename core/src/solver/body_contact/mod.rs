@@ -161,8 +161,11 @@ pub struct BodyContact {
     step: u64,
     /// Per body: node box, surface point range, mass per unit of share, mesh index.
     boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
-    /// Per body: its fastest node's speed in the step, m/s.
+    /// Per body: its fastest node's speed in the step, m/s, its nodes' mean velocity, and
+    /// the fastest node's speed relative to that mean.
     max_speed: Vec<f64>,
+    mean_velocity: Vec<Vector3<f64>>,
+    spread_speed: Vec<f64>,
     points: Vec<Range<usize>>,
     mass_per_share: Vec<f64>,
     mass: Vec<f64>,
@@ -192,6 +195,16 @@ impl BodyContact {
     /// touches nothing here).
     pub(crate) fn touches_others(&self) -> bool {
         !self.colliders.is_empty() || self.deformable_pairs()
+    }
+
+    /// How far a point of body `a` can move relative to a point of body `b` in a step of
+    /// `dt`, m: their fastest nodes' speeds, or their mean velocities' difference and each
+    /// one's fastest node relative to its mean (two bodies falling together barely move
+    /// relative to each other), whichever is less.
+    fn sweep(&self, a: usize, b: usize, dt: f64) -> f64 {
+        let apart = (self.mean_velocity[a] - self.mean_velocity[b]).norm();
+        let relative = self.spread_speed[a] + self.spread_speed[b] + apart;
+        relative.min(self.max_speed[a] + self.max_speed[b]) * dt
     }
 
     /// Whether the contacts of bodies `a < b` are constraints of the step, not the layer's
@@ -273,6 +286,8 @@ impl BodyContact {
         }
         self.boxes = vec![(Vector3::zeros(), Vector3::zeros()); bodies.len()];
         self.max_speed = vec![0.0; bodies.len()];
+        self.mean_velocity = vec![Vector3::zeros(); bodies.len()];
+        self.spread_speed = vec![0.0; bodies.len()];
         self.sample_x = vec![Vector3::zeros(); surface.len()];
         self.sample_v = vec![Vector3::zeros(); surface.len()];
         self.sample_stamp = vec![0; bodies.len()];
@@ -410,19 +425,24 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             Vector3::repeat(f64::INFINITY),
             Vector3::repeat(f64::NEG_INFINITY),
         );
-        let mut speed2: f64 = 0.0;
+        let (mut speed2, mut spread2): (f64, f64) = (0.0, 0.0);
+        let mut mean_v = Vector3::zeros();
         if bc.mesh_of[b].is_some() || !bc.points[b].is_empty() {
-            for (x, v) in nodes.position[info.nodes.clone()]
-                .iter()
-                .zip(&nodes.velocity[info.nodes.clone()])
-            {
+            let v = &nodes.velocity[info.nodes.clone()];
+            for (x, v) in nodes.position[info.nodes.clone()].iter().zip(v) {
                 lo = lo.inf(x);
                 hi = hi.sup(x);
                 speed2 = speed2.max(v.norm_squared());
             }
+            mean_v = v.iter().sum::<Vector3<f64>>() / v.len().max(1) as f64;
+            for v in v {
+                spread2 = spread2.max((v - mean_v).norm_squared());
+            }
         }
         bc.boxes[b] = (lo, hi);
         bc.max_speed[b] = speed2.sqrt();
+        bc.mean_velocity[b] = mean_v;
+        bc.spread_speed[b] = spread2.sqrt();
     }
     let n_bodies = bodies.len();
     let searches = begin_searches(bc, input);
@@ -503,7 +523,7 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             let lo = alo.sup(&blo).add_scalar(-h);
             let hi = ahi.inf(&bhi).add_scalar(h);
             let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
-            let sweep = (bc.max_speed[a] + bc.max_speed[b]) * input.dt;
+            let sweep = bc.sweep(a, b, input.dt);
             let apart = gap.is_nan()
                 || gap > reach + sweep
                 || (0..3).any(|k| lo[k] > hi[k])

@@ -7,21 +7,25 @@
 //!
 //! **Exactness.** A face the search can pick in a step lies within `max(reach, sweep)` of the
 //! sample (the nearest face within the layer, or one the sample crossed in the step, with the
-//! pair's relative motion at most `sweep`). Every embedded point moves no farther than its
-//! body's farthest node, so a face within that distance now lay within
-//! `max(reach, sweep) + drift` when the list was built, `drift` both bodies' largest node
-//! displacement since. A list is used while `drift + sweep ≤ skin`; it holds every face whose
-//! distance bound was within `reach + skin`. The search then sees every face it could pick.
+//! pair's relative motion at most `sweep`). Every embedded point (a convex combination of its
+//! cell's nodes) moves beyond its body's shift no farther than the body's farthest node, so a
+//! face within that distance now lay within `max(reach, sweep) + moved` when the list was
+//! built, `moved` the bound on a sample's motion relative to a face since (see Drift). A list
+//! is used while `moved + sweep ≤ skin`; it holds every face whose distance bound was within
+//! `reach + skin`. The search then sees every face it could pick.
 //!
 //! **Ranked.** Each sample's faces are kept nearest first by their distance bound when the
 //! list was built, with that bound: the search stops at the first face that was farther than
-//! the contact it has found plus both bodies' drift since (or than the step's travel, for a
-//! crossing), so a resting sample looks at the faces under it only.
+//! the contact it has found plus `moved` (or than the step's travel, for a crossing), so a resting sample looks at the faces under it only.
 //!
-//! **Drift.** Each body keeps an anchor (its node positions at some step) and measures its
-//! largest node displacement from it once a step; once that passes a quarter of the skin the
-//! body re-anchors, which invalidates its lists. A list remembers both bodies' drift when it
-//! was built (the displacement since is at most that plus the drift now).
+//! **Drift.** Each body keeps an anchor (its node positions at some step) and measures, once a
+//! step, how far its nodes' mean has moved from the anchor's (its shift) and its largest node
+//! displacement beyond that shift (its drift); once the drift passes a quarter of the skin the
+//! body re-anchors, which invalidates its lists. A list remembers both bodies' drift and the
+//! difference of their shifts when it was built: a sample has moved relative to a face since
+//! by at most both drifts then and now plus how far that difference has changed, so bodies
+//! that fall or slide together keep their lists. The sweep is relative too (see
+//! `BodyContact::sweep`).
 
 use super::*;
 use std::collections::HashMap;
@@ -46,22 +50,36 @@ pub(super) struct Neighbours {
     lists: HashMap<(u32, u32), FaceList>,
 }
 
-/// A body's anchor: node positions, a count of re-anchorings, and the largest displacement
-/// from the anchor in step `stamp`.
+/// A body's anchor: node positions and their mean, a count of re-anchorings, and in step
+/// `stamp` how far the nodes' mean has moved from the anchor's (`shift`) and the largest
+/// displacement of a node beyond that shift (`now`).
 #[derive(Debug, Clone, Default, PartialEq)]
 struct Drift {
     anchor: Vec<Vector3<f64>>,
+    anchor_mean: Vector3<f64>,
     epoch: u64,
     now: f64,
+    shift: Vector3<f64>,
     stamp: u64,
+}
+
+/// A body's drift in a step: its anchor's epoch, the largest node displacement beyond the
+/// shift, and the shift of the nodes' mean since the anchor.
+type DriftNow = (u64, f64, Vector3<f64>);
+
+/// The mean of `positions`.
+fn mean(positions: &[Vector3<f64>]) -> Vector3<f64> {
+    positions.iter().sum::<Vector3<f64>>() / positions.len().max(1) as f64
 }
 
 /// One ordered pair's lists: per sample, its faces of the other body.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct FaceList {
-    /// Both bodies' anchors when built, and their drift then (summed).
+    /// Both bodies' anchors when built, their drift then (summed), and the first's shift
+    /// less the second's then.
     epochs: (u64, u64),
     drift_at_build: f64,
+    offset_at_build: Vector3<f64>,
     /// The skin it was built with, m (none while the bodies move fast).
     skin: f64,
     /// The step it was last looked at, and the step it was built in (its faces' boxes and
@@ -80,33 +98,37 @@ pub(super) struct FaceList {
 }
 
 impl Neighbours {
-    /// Body `b`'s (epoch, drift) in step `step`, re-anchoring it when it has drifted past
-    /// its share of `skin` (its nodes: `positions`).
-    fn drift(&mut self, b: usize, positions: &[Vector3<f64>], step: u64, skin: f64) -> (u64, f64) {
+    /// Body `b`'s drift in step `step`, re-anchoring it when a node has moved past its share
+    /// of `skin` beyond the body's shift (its nodes: `positions`). A body that only moves as
+    /// a whole (a pile falling together) keeps its anchor.
+    fn drift(&mut self, b: usize, positions: &[Vector3<f64>], step: u64, skin: f64) -> DriftNow {
         if self.drift.len() <= b {
             self.drift.resize_with(b + 1, Drift::default);
         }
         let d = &mut self.drift[b];
         if d.stamp != step {
             d.stamp = step;
-            d.now = if d.anchor.len() == positions.len() {
+            (d.now, d.shift) = if d.anchor.len() == positions.len() {
+                let shift = mean(positions) - d.anchor_mean;
                 let far = positions
                     .iter()
                     .zip(&d.anchor)
-                    .map(|(x, a)| (x - a).norm_squared())
+                    .map(|(x, a)| (x - a - shift).norm_squared())
                     .fold(0.0, f64::max);
-                far.sqrt()
+                (far.sqrt(), shift)
             } else {
-                f64::INFINITY
+                (f64::INFINITY, Vector3::zeros())
             };
-            if d.now.is_nan() || d.now > ANCHOR_DRIFT * skin {
+            if d.now.is_nan() || d.now > ANCHOR_DRIFT * skin || !d.shift.norm().is_finite() {
                 d.anchor.clear();
                 d.anchor.extend_from_slice(positions);
+                d.anchor_mean = mean(positions);
                 d.epoch += 1;
                 d.now = 0.0;
+                d.shift = Vector3::zeros();
             }
         }
-        (d.epoch, d.now)
+        (d.epoch, d.now, d.shift)
     }
 
     /// Forget the lists not looked at for a while (pairs that moved apart).
@@ -137,21 +159,24 @@ pub(super) fn take(
     };
     let step = bc.step;
     let nodes = |body: usize| &input.nodes.position[input.bodies[body].nodes.clone()];
-    let (epoch_a, drift_a) = bc.neighbours.drift(a, nodes(a), step, skin);
-    let (epoch_b, drift_b) = bc.neighbours.drift(b, nodes(b), step, skin);
-    let sweep = (bc.max_speed[a] + bc.max_speed[b]) * dt;
+    let (epoch_a, drift_a, shift_a) = bc.neighbours.drift(a, nodes(a), step, skin);
+    let (epoch_b, drift_b, shift_b) = bc.neighbours.drift(b, nodes(b), step, skin);
+    let sweep = bc.sweep(a, b, dt);
     let mut list = bc
         .neighbours
         .lists
         .remove(&(a as u32, b as u32))
         .unwrap_or_default();
+    // How far a sample may have moved relative to a face since the list was built.
+    let moved =
+        list.drift_at_build + drift_a + drift_b + (shift_a - shift_b - list.offset_at_build).norm();
     let fresh = list.epochs == (epoch_a, epoch_b)
         && list.used > 0
         && !bc.lists_off
-        && list.drift_at_build + drift_a + drift_b + sweep <= list.skin;
+        && moved + sweep <= list.skin;
     list.used = step;
     if fresh {
-        list.slack = list.drift_at_build + drift_a + drift_b;
+        list.slack = moved;
         return list;
     }
     list.slack = 0.0;
@@ -162,6 +187,7 @@ pub(super) fn take(
     let skin = if calm { skin } else { 0.0 };
     list.epochs = (epoch_a, epoch_b);
     list.drift_at_build = drift_a + drift_b;
+    list.offset_at_build = shift_a - shift_b;
     list.skin = skin;
     list.samples.clear();
     list.faces.clear();

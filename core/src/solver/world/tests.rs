@@ -257,11 +257,13 @@ fn the_stencil_pass_follows_the_index_lists() {
 #[test]
 fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
     // Three rubber boxes: one resting on the floor, one dropped onto it off-centre, one
-    // thrown sideways into both at 6 m/s (fast enough to cross a layer in a few substeps).
-    // Stepped with the body contact's neighbour lists and with every list rebuilt each step
-    // (the grid search alone), the nodes agree to rounding (a tie between two faces at the
-    // same distance may go the other way).
+    // thrown sideways into both at 6 m/s (fast enough to cross a layer in a few substeps);
+    // and apart from them two boxes a centimetre apart thrown down together (their lists
+    // outlive the fall: they move together). Stepped with the body contact's neighbour lists
+    // and with every list rebuilt each step (the grid search alone), the nodes agree to
+    // rounding (a tie between two faces at the same distance may go the other way).
     let m = Material::preset("rubber").unwrap();
+    let down = Vector3::new(0.0, -2.0, 0.0);
     let boxes = [
         ([0.0, 0.0, 0.0], [0.4, 0.3, 0.4], Vector3::zeros()),
         ([0.1, 0.32, 0.1], [0.3, 0.52, 0.3], Vector3::zeros()),
@@ -270,6 +272,8 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
             [-0.25, 0.25, 0.3],
             Vector3::new(4.0, 0.5, 0.0),
         ),
+        ([1.0, 0.3, 0.0], [1.2, 0.5, 0.2], down),
+        ([1.21, 0.3, 0.0], [1.41, 0.5, 0.2], down),
     ];
     let lattice_of = |p: &[Point3<f64>], t: &[[u32; 3]]| {
         let resolution = Resolution::CellsAlongLongest(4);
