@@ -18,6 +18,11 @@
 //! list was built, with that bound: the search stops at the first face that was farther than
 //! the contact it has found plus `moved` (or than the step's travel, for a crossing), so a resting sample looks at the faces under it only.
 //!
+//! **Skin.** A quarter of the reach to start with; a pair whose list dies within
+//! `SHORT_LIFE` steps while it is calm (resting jitter re-anchoring its bodies) builds the next
+//! one with twice the skin, up to four times, and one that lives past `LONG_LIFE` steps
+//! with half. A body re-anchors only past its share of the widest skin its lists took.
+//!
 //! **Drift.** Each body keeps an anchor (its node positions at some step) and measures, once a
 //! step, how far its nodes' mean has moved from the anchor's (its shift) and its largest node
 //! displacement beyond that shift (its drift); once the drift passes a quarter of the skin the
@@ -40,6 +45,15 @@ const ANCHOR_DRIFT: f64 = 0.25;
 /// skin.
 const LIST_STEPS: f64 = 4.0;
 
+/// A list that lived fewer steps than this (built with a skin) is rebuilt with twice the
+/// skin, up to [`MAX_SKIN_SCALE`] times the base; one that lived more than [`LONG_LIFE`]
+/// with half. Resting bodies jitter by a fraction of a millimetre whatever their cells: at 10
+/// cells a body the base skin is 1.9 mm and they re-anchored every few steps, at 3 cells it
+/// is 6 mm and a wider one only made longer lists.
+const SHORT_LIFE: u64 = 16;
+const LONG_LIFE: u64 = 64;
+const MAX_SKIN_SCALE: f64 = 4.0;
+
 /// How many steps a list not looked at is kept.
 const STALE_STEPS: u64 = 64;
 
@@ -47,6 +61,8 @@ const STALE_STEPS: u64 = 64;
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct Neighbours {
     drift: Vec<Drift>,
+    /// Per body: the widest skin a list of it was built with (its anchor holds for that).
+    anchor_skin: Vec<f64>,
     lists: HashMap<(u32, u32), FaceList>,
 }
 
@@ -80,8 +96,10 @@ pub(super) struct FaceList {
     epochs: (u64, u64),
     drift_at_build: f64,
     offset_at_build: Vector3<f64>,
-    /// The skin it was built with, m (none while the bodies move fast).
+    /// The skin it was built with, m (none while the bodies move fast), and the multiple of
+    /// the base skin the pair's next list takes (0: not yet chosen, 1).
     skin: f64,
+    scale: f64,
     /// The step it was last looked at, and the step it was built in (its faces' boxes and
     /// planes are that step's).
     used: u64,
@@ -105,6 +123,7 @@ impl Neighbours {
         if self.drift.len() <= b {
             self.drift.resize_with(b + 1, Drift::default);
         }
+        let skin = skin.max(self.anchor_skin.get(b).copied().unwrap_or(0.0));
         let d = &mut self.drift[b];
         if d.stamp != step {
             d.stamp = step;
@@ -152,11 +171,17 @@ pub(super) fn take(
 ) -> FaceList {
     let (h, dt) = (input.layer.thickness_m, input.dt);
     let reach = h.max(BEHIND_LAYERS * h);
-    let skin = if bc.lists_off {
+    let scale = |list: &FaceList| if list.scale > 0.0 { list.scale } else { 1.0 };
+    let base = if bc.lists_off {
         0.0
     } else {
         SKIN_REACHES * reach
     };
+    let skin = base
+        * bc.neighbours
+            .lists
+            .get(&(a as u32, b as u32))
+            .map_or(1.0, scale);
     let step = bc.step;
     let nodes = |body: usize| &input.nodes.position[input.bodies[body].nodes.clone()];
     let (epoch_a, drift_a, shift_a) = bc.neighbours.drift(a, nodes(a), step, skin);
@@ -179,12 +204,32 @@ pub(super) fn take(
         list.slack = moved;
         return list;
     }
-    list.slack = 0.0;
-    list.built = step;
     // A list pays only if it outlives a few steps: while the bodies move fast enough to
     // re-anchor sooner, it is built without a skin (the plain search, for this step only).
+    // A list that died young while the pair was calm is rebuilt wider, one that outlived
+    // many steps narrower (module docs).
+    let mut scale = scale(&list);
+    if list.skin > 0.0 {
+        let lived = step - list.built;
+        if lived < SHORT_LIFE {
+            scale = (scale * 2.0).min(MAX_SKIN_SCALE);
+        } else if lived > LONG_LIFE {
+            scale = (scale * 0.5).max(1.0);
+        }
+    }
+    list.scale = scale;
+    list.slack = 0.0;
+    list.built = step;
+    let skin = base * scale;
     let calm = sweep * LIST_STEPS <= ANCHOR_DRIFT * skin;
     let skin = if calm { skin } else { 0.0 };
+    for body in [a, b] {
+        let widest = &mut bc.neighbours.anchor_skin;
+        if widest.len() <= body {
+            widest.resize(body + 1, 0.0);
+        }
+        widest[body] = widest[body].max(skin);
+    }
     list.epochs = (epoch_a, epoch_b);
     list.drift_at_build = drift_a + drift_b;
     list.offset_at_build = shift_a - shift_b;
