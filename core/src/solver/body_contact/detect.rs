@@ -455,9 +455,10 @@ pub(super) fn begin_pair(
     let list = neighbours::take(bc, input, (a, b, mb), lo, hi);
     // A list built in this step has refreshed its faces already; one that names the mesh's
     // faces many times over refreshes them all, once.
-    if list.built != bc.step && list.faces.len() >= bc.meshes[mb].triangles.len() {
+    let reused = list.built != bc.step;
+    if reused && list.faces.len() >= bc.meshes[mb].triangles.len() {
         bc.meshes[mb].refresh_all();
-    } else if list.built != bc.step {
+    } else if reused {
         let mut start = 0;
         for &(i, end) in &list.samples {
             if sample_in(bc, i as usize, (&lo, &hi)).is_some() {

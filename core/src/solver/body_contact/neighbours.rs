@@ -16,7 +16,8 @@
 //!
 //! **Ranked.** Each sample's faces are kept nearest first by their distance bound when the
 //! list was built, with that bound: the search stops at the first face that was farther than
-//! the contact it has found plus `moved` (or than the step's travel, for a crossing), so a resting sample looks at the faces under it only.
+//! the contact it has found plus `moved` (or than the step's travel, for a crossing), so a
+//! resting sample looks at the faces under it only.
 //!
 //! **Skin.** A quarter of the reach to start with; a pair whose list dies within
 //! `SHORT_LIFE` steps while it is calm (resting jitter re-anchoring its bodies) builds the next
@@ -177,21 +178,17 @@ pub(super) fn take(
     } else {
         SKIN_REACHES * reach
     };
-    let skin = base
-        * bc.neighbours
-            .lists
-            .get(&(a as u32, b as u32))
-            .map_or(1.0, scale);
-    let step = bc.step;
-    let nodes = |body: usize| &input.nodes.position[input.bodies[body].nodes.clone()];
-    let (epoch_a, drift_a, shift_a) = bc.neighbours.drift(a, nodes(a), step, skin);
-    let (epoch_b, drift_b, shift_b) = bc.neighbours.drift(b, nodes(b), step, skin);
-    let sweep = bc.sweep(a, b, dt);
     let mut list = bc
         .neighbours
         .lists
         .remove(&(a as u32, b as u32))
         .unwrap_or_default();
+    let skin = base * scale(&list);
+    let step = bc.step;
+    let nodes = |body: usize| &input.nodes.position[input.bodies[body].nodes.clone()];
+    let (epoch_a, drift_a, shift_a) = bc.neighbours.drift(a, nodes(a), step, skin);
+    let (epoch_b, drift_b, shift_b) = bc.neighbours.drift(b, nodes(b), step, skin);
+    let sweep = bc.sweep(a, b, dt);
     // How far a sample may have moved relative to a face since the list was built.
     let moved =
         list.drift_at_build + drift_a + drift_b + (shift_a - shift_b - list.offset_at_build).norm();
