@@ -185,6 +185,9 @@ pub struct World {
     /// The most total energy the bodies have had at the start of a frame, plus the
     /// manipulators' work since (see [`FrameDiagnostics::energy_gain`]), J.
     energy_budget: Option<f64>,
+    /// The elastic energy last measured, keyed by the time and the positions' fingerprint
+    /// (see [`World::frame_energies`]).
+    elastic_memo: Option<((u64, u64), f64)>,
     prepared: Option<Prepared>,
     /// A device that steps the frames instead of the CPU (see [`super::device`]).
     pub(crate) device: super::device::DeviceSlot,
@@ -229,6 +232,7 @@ impl World {
             rest: Vec::new(),
             xpbd: None,
             energy_budget: None,
+            elastic_memo: None,
             prepared: None,
             device: Default::default(),
             scratch: StepScratch::default(),
@@ -337,7 +341,7 @@ impl World {
     ) -> Result<FrameDiagnostics, SimulationError> {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
-        let (kinetic, elastic, gravity) = self.energies();
+        let (kinetic, elastic, gravity) = self.frame_energies();
         super::fields::refresh(self, false);
         self.contact_log.begin_frame();
         if self.on_device() {
@@ -357,7 +361,8 @@ impl World {
             return Err(SimulationError::Field(message));
         }
         self.check_finite(frame)?;
-        let mut diag = self.diagnostics(frame);
+        let energies = self.frame_energies();
+        let mut diag = self.diagnostics_from(frame, energies);
         diag.substeps = choice.substeps;
         diag.dispersion_corrections = acc.corrections;
         diag.dispersion_iterations = acc.iterations;

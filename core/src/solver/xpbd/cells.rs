@@ -447,30 +447,35 @@ impl CellSet {
         }
     }
 
-    /// Elastic energy of every cell at positions `x`, J (for the report's energy balance).
+    /// Elastic energy of every cell at positions `x`, J (for the report's energy balance),
+    /// summed over fixed chunks of cells on the pool: the same bits on any thread count. Two
+    /// a frame; on a GPU's 128³ lattice, serially, they cost the frame 0.75 s of the CPU.
     pub(crate) fn energy(&self, x: &[V3]) -> f64 {
+        super::super::deterministic_sum(self.nodes.len(), |j| self.cell_energy(j, x))
+    }
+
+    /// Elastic energy of cell `j` at positions `x`, J.
+    fn cell_energy(&self, j: usize, x: &[V3]) -> f64 {
         let mut total = 0.0;
-        for j in 0..self.nodes.len() {
-            let local = self.nodes[j].map(|n| x[n as usize]);
-            let (kh, kd) = (inverse(self.hydro_alpha[j]), inverse(self.dev_alpha[j]));
-            if let Shape::Cube { inv_h, .. } = self.shape[j] {
-                let c_h = cube_volume(&local).0 * inv_h * inv_h * inv_h - 1.0;
-                total += 0.5 * kh * c_h * c_h;
-            }
-            let r = self.axis_root[j];
-            for_each_element(self.shape[j], |element| {
-                let f = element.gradient(&local);
-                let e = green_strain(&f);
-                if let Shape::Tet { .. } = self.shape[j] {
-                    let c_h = f.determinant() - 1.0;
-                    total += 0.5 * kh * c_h * c_h;
-                    total += 0.5 * kd * e.norm_squared();
-                } else {
-                    let weighted = Matrix3::from_fn(|i, k| e[(i, k)] * r[i] * r[k]);
-                    total += 0.5 * kd * e.dot(&weighted);
-                }
-            });
+        let local = self.nodes[j].map(|n| x[n as usize]);
+        let (kh, kd) = (inverse(self.hydro_alpha[j]), inverse(self.dev_alpha[j]));
+        if let Shape::Cube { inv_h, .. } = self.shape[j] {
+            let c_h = cube_volume(&local).0 * inv_h * inv_h * inv_h - 1.0;
+            total += 0.5 * kh * c_h * c_h;
         }
+        let r = self.axis_root[j];
+        for_each_element(self.shape[j], |element| {
+            let f = element.gradient(&local);
+            let e = green_strain(&f);
+            if let Shape::Tet { .. } = self.shape[j] {
+                let c_h = f.determinant() - 1.0;
+                total += 0.5 * kh * c_h * c_h;
+                total += 0.5 * kd * e.norm_squared();
+            } else {
+                let weighted = Matrix3::from_fn(|i, k| e[(i, k)] * r[i] * r[k]);
+                total += 0.5 * kd * e.dot(&weighted);
+            }
+        });
         total
     }
 }
