@@ -7,11 +7,13 @@
 //! state is read back once per output frame.
 
 mod layout;
+mod profile;
 
 pub use layout::MAX_SUBSTEPS;
 
 use bytemuck::cast_slice as bytes;
 use layout::{Body, Packed, Params, MAX_PLANES, PUSH_CHUNK, SIXTEEN_FLOATS, WORKGROUP};
+use rayon::prelude::*;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::solver::device::{DeviceFrame, DeviceModel, DeviceSolver, DeviceTotals};
 use springbake_core::solver::Capsule;
@@ -68,6 +70,17 @@ pub fn probe() -> Result<AdapterSummary, GpuError> {
     request_adapter().map(|(_, adapter)| summary(&adapter))
 }
 
+/// One dispatch of a substep: its entry point, the colour span it covers (bind group 1's
+/// offset), its workgroups.
+struct Dispatch<'a> {
+    pipeline: &'a wgpu::ComputePipeline,
+    span: Option<u32>,
+    groups: u32,
+}
+
+/// A stage of the substep (named as [`GpuSolver::profile`] reports it) and its dispatches.
+struct Stage<'a>(&'static str, Vec<Dispatch<'a>>);
+
 /// The shader's entry points.
 struct Pipelines {
     predict: wgpu::ComputePipeline,
@@ -112,6 +125,8 @@ pub struct GpuSolver {
     chunk_count: u32,
     staging: wgpu::Buffer,
     has_points: bool,
+    /// Each node's inverse mass: `base`'s `w`.
+    inv_mass: Vec<f32>,
     /// Errors wgpu reported outside a call's result (its default is to panic).
     errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
@@ -193,8 +208,16 @@ impl GpuSolver {
                 limits.max_compute_workgroups_per_dimension
             )));
         }
+        let bodies = model.bodies.len() as u32;
+        if bodies > limits.max_compute_workgroups_per_dimension {
+            return Err(unsuitable(format!(
+                "{bodies} bodies need more workgroups than its {} per dispatch",
+                limits.max_compute_workgroups_per_dimension
+            )));
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("springbake xpbd"),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
             required_limits: limits.clone(),
             ..Default::default()
         }))
@@ -285,6 +308,7 @@ impl GpuSolver {
             chunk_count: packed.chunks.len() as u32,
             staging,
             has_points: !model.point_order.is_empty(),
+            inv_mass: packed.nodes.iter().map(|n| n.inv_mass).collect(),
         })
     }
 
@@ -301,55 +325,67 @@ impl GpuSolver {
         &self.adapter
     }
 
-    /// Record one substep's dispatches (the CPU's stages in order).
-    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>, k: u32) {
+    /// One substep's stages in the CPU's order, each a name and its dispatches (the same for
+    /// every substep of a batch: only the substep's index, bind group 2, changes).
+    fn stages(&self) -> Vec<Stage<'_>> {
         let p = &self.pipelines;
-        pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
+        let whole = |pipeline, groups| Dispatch {
+            pipeline,
+            span: None,
+            groups,
+        };
         let nodes = groups(self.params.node_count);
-        let bodies = groups(self.params.body_count);
-        let run = |pass: &mut wgpu::ComputePass<'_>, pipeline: &wgpu::ComputePipeline, n: u32| {
-            if n > 0 {
-                pass.set_pipeline(pipeline);
-                pass.dispatch_workgroups(n, 1, 1);
-            }
+        let spans = |pipeline, colours: &mut dyn Iterator<Item = (usize, u32)>| {
+            colours
+                .map(|(k, count)| Dispatch {
+                    pipeline,
+                    span: Some(self.span_offsets[k]),
+                    groups: groups(count),
+                })
+                .collect::<Vec<_>>()
         };
-        let spans = |pass: &mut wgpu::ComputePass<'_>,
-                     pipeline: &wgpu::ComputePipeline,
-                     k: usize,
-                     count: u32| {
-            if count > 0 {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(1, &self.spans, &[self.span_offsets[k]]);
-                pass.dispatch_workgroups(groups(count), 1, 1);
-            }
-        };
-        run(pass, &p.predict, nodes);
-        for (k, count) in self.cell_counts() {
-            spans(pass, &p.solve_cells, k, count);
-        }
-        run(pass, &p.torque_sums, self.chunk_count);
-        run(pass, &p.torque_finish, bodies);
-        run(pass, &p.torque_apply, nodes);
+        let mut stages = vec![
+            Stage("predict", vec![whole(&p.predict, nodes)]),
+            Stage("cells", spans(&p.solve_cells, &mut self.cell_counts())),
+            Stage("torque sums", vec![whole(&p.torque_sums, self.chunk_count)]),
+            Stage(
+                "torque finish",
+                vec![whole(&p.torque_finish, self.params.body_count)],
+            ),
+            Stage("torque apply", vec![whole(&p.torque_apply, nodes)]),
+        ];
         if self.params.plane_count > 0 || self.params.capsule_count > 0 {
-            run(pass, &p.contact_nodes, nodes);
+            stages.push(Stage("contact nodes", vec![whole(&p.contact_nodes, nodes)]));
             if self.has_points {
-                for (k, count) in self.point_counts() {
-                    spans(pass, &p.contact_points, k, count);
-                }
+                let points = spans(&p.contact_points, &mut self.point_counts());
+                stages.push(Stage("contact points", points));
             }
             if self.params.capsule_count > 0 {
-                run(pass, &p.push_sums, self.params.push_chunks);
-                pass.set_pipeline(&p.push_finish);
-                pass.dispatch_workgroups(1, 1, 1);
+                let sums = whole(&p.push_sums, self.params.push_chunks);
+                stages.push(Stage("capsule push", vec![sums, whole(&p.push_finish, 1)]));
             }
-            for (k, count) in self.cell_counts() {
-                spans(pass, &p.barrier_cells, k, count);
-            }
+            let barrier = spans(&p.barrier_cells, &mut self.cell_counts());
+            stages.push(Stage("barrier", barrier));
         }
-        run(pass, &p.velocities, nodes);
-        run(pass, &p.damp_sums, self.chunk_count);
-        run(pass, &p.damp_finish, bodies);
-        run(pass, &p.damp_apply, nodes);
+        stages.extend([
+            Stage("velocities", vec![whole(&p.velocities, nodes)]),
+            Stage("damp sums", vec![whole(&p.damp_sums, self.chunk_count)]),
+            Stage(
+                "damp finish",
+                vec![whole(&p.damp_finish, self.params.body_count)],
+            ),
+            Stage("damp apply", vec![whole(&p.damp_apply, nodes)]),
+        ]);
+        stages
+    }
+
+    /// Record `dispatches` into `pass` (bind groups 0 and 2 already set).
+    fn record(&self, pass: &mut wgpu::ComputePass<'_>, dispatches: &[Dispatch<'_>]) {
+        for d in dispatches.iter().filter(|d| d.groups > 0) {
+            pass.set_pipeline(d.pipeline);
+            pass.set_bind_group(1, &self.spans, &[d.span.unwrap_or(0)]);
+            pass.dispatch_workgroups(d.groups, 1, 1);
+        }
     }
 
     /// Write the frame's capsules (growing their buffer when a frame needs more) and their
@@ -439,9 +475,12 @@ impl GpuSolver {
         capsule_count: usize,
     ) -> Result<DeviceTotals, String> {
         self.upload_capsules(capsules, capsule_count);
+        // On the pool: at 2 M nodes each of these passes is tens of milliseconds on one core.
         let f4 = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        let base: Vec<[f32; 4]> = position.iter().map(f4).collect();
-        let vel: Vec<[f32; 4]> = velocity.iter().map(f4).collect();
+        let base: Vec<[f32; 4]> = (position.par_iter().zip(&self.inv_mass[..]))
+            .map(|(v, &w)| [v.x as f32, v.y as f32, v.z as f32, w])
+            .collect();
+        let vel: Vec<[f32; 4]> = velocity.par_iter().map(f4).collect();
         self.queue.write_buffer(&self.buffers.base, 0, bytes(&base));
         self.queue.write_buffer(&self.buffers.v, 0, bytes(&vel));
         self.params.dt = dt as f32;
@@ -460,16 +499,18 @@ impl GpuSolver {
             });
         encoder.clear_buffer(&self.buffers.x, 0, None);
         encoder.clear_buffer(&self.buffers.prev, 0, None);
+        let stages = self.stages();
         for first in (0..substeps).step_by(SUBSTEPS_PER_PASS as usize) {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("substeps"),
                 timestamp_writes: None,
             });
             pass.set_bind_group(0, &self.state, &[]);
-            pass.set_bind_group(1, &self.spans, &[0]);
-            pass.set_bind_group(2, &self.steps, &[0]);
             for k in first..(first + SUBSTEPS_PER_PASS).min(substeps) {
-                self.record_substep(&mut pass, k);
+                pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
+                for stage in &stages {
+                    self.record(&mut pass, &stage.1);
+                }
             }
         }
         let n = u64::from(self.params.node_count);
@@ -513,12 +554,9 @@ impl GpuSolver {
             let (step, v) = rest.split_at(n as usize);
             let wide =
                 |p: &[f32; 4]| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-            for ((x, a), b) in position.iter_mut().zip(travel).zip(step) {
-                *x += wide(a) + wide(b);
-            }
-            for (x, d) in velocity.iter_mut().zip(v) {
-                *x = wide(d);
-            }
+            (position.par_iter_mut().zip(travel).zip(step))
+                .for_each(|((x, a), b)| *x += wide(a) + wide(b));
+            (velocity.par_iter_mut().zip(v)).for_each(|(x, d)| *x = wide(d));
             let at = 48 * n as usize;
             let bits = [view[at], view[at + 1], view[at + 2], view[at + 3]];
             let mut totals = DeviceTotals {
