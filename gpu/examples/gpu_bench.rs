@@ -4,7 +4,7 @@
 //! substeps per second, seconds per frame and the adapter, one line per size.
 //!
 //! `--live N` adds the live viewer's case: a 0.5 m jelly cube of N³ nodes on the floor swept
-//! by a 5 cm capsule at 1 m/s, stepped in frames of 1/60 s as the viewer steps them (solve
+//! broadside (the capsule's axis across the motion) by a 5 cm capsule at 1 m/s, stepped in frames of 1/60 s as the viewer steps them (solve
 //! and read back; drawing not counted): median and slowest milliseconds per frame against
 //! the 16.7 ms of 60 fps.
 //!
@@ -130,7 +130,7 @@ fn live(n: u32, frames: usize, gpu: bool) -> (f64, f64, u32, usize) {
     let key = |t: f64, x: f64| ManipulatorKey {
         t,
         position: Vector3::new(x, 0.2, 0.0),
-        yaw_deg: 0.0,
+        yaw_deg: 90.0,
     };
     world.manipulators.push(ManipulatorTrack {
         radius: 0.05,

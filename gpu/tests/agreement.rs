@@ -102,8 +102,9 @@ fn a_tilted_box_lands_on_its_corner_and_tumbles_as_on_the_cpu() {
     assert!(worst <= TOLERANCE * 0.4, "positions {worst} m apart");
 }
 
-/// The papers' headline scene: a soft block on the floor swept broadside by the capsule
-/// manipulator; the GPU pushes it as the CPU does and reports the same reaction.
+/// The papers' headline scene: a soft block on the floor pushed by the capsule manipulator
+/// (yaw 0: its axis along the motion, so it spears the block end-on, its tip starting 4 cm
+/// inside); the GPU pushes it as the CPU does and reports the same reaction.
 #[test]
 fn a_jelly_block_swept_by_the_manipulator_moves_as_on_the_cpu() {
     let make = || {
