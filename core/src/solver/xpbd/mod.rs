@@ -72,6 +72,13 @@ const TRAVEL_PER_SUBSTEP: f64 = 0.1;
 /// that travel (a 1 cm rubber cube thrown down at 5 m/s inverts a cell at 0.7 of its size a
 /// substep, none at 0.35).
 const BODY_TRAVEL_PER_SUBSTEP: f64 = 0.25;
+/// Most substeps per second chosen for fast motion of nodes that can reach a floor or wall
+/// within the frame (500 a frame at 24): [`MAX_SPEED_SUBSTEP_RATE`] does not hold them, for a
+/// layer pressed by more than [`TRAVEL_PER_SUBSTEP`] of a cell a substep folds (a 1 m rubber
+/// cube dropped 1 m on 64³ nodes held at 60 substeps a frame inverted a cell, 0.19 of a cell
+/// a substep; 128³ at 0.39 inverted 11 000; given 108 and 75 in its two impact frames, 64³
+/// inverts none). This bounds a bake's time when cells are tiny against an impact.
+pub const MAX_IMPACT_SUBSTEP_RATE: f64 = 12_000.0;
 /// The same for a capsule's own speed (a thin capsule sweeping a soft body creases it).
 const CAPSULE_TRAVEL_PER_SUBSTEP: f64 = 0.05;
 /// How close to a plane, in shortest cell edges, a point counts as touching it for the
@@ -372,7 +379,9 @@ fn kept_nodes(world: &World) -> Vec<u32> {
 /// touch, also enough that no node travels more than [`TRAVEL_PER_SUBSTEP`] of the shortest
 /// cell (a capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most
 /// [`MAX_SPEED_SUBSTEP_RATE`]; of a body the restitution moves as a whole at an impact, the
-/// share it moves is bounded by the body's thickness instead ([`speed_rate`]). Each count is rounded up to a whole substep.
+/// share it moves is bounded by the body's thickness instead ([`speed_rate`]). Nodes that can
+/// reach a floor or wall within the frame keep the travel bound up to
+/// [`MAX_IMPACT_SUBSTEP_RATE`] instead. Each count is rounded up to a whole substep.
 pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice {
     if world.xpbd.is_none() {
         world.xpbd = Some(Model::build(world));
@@ -414,6 +423,30 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
         if by_speed > n {
             n = by_speed.min(count(MAX_SPEED_SUBSTEP_RATE).max(n));
             limited_by = if by_speed > n { "speed cap" } else { "speed" };
+        }
+        // Nodes that can reach a floor or wall this frame (all of them when bodies, colliders
+        // or capsules are there to touch too) are not held by the speed cap.
+        let x = &world.nodes.position;
+        let planes = &world.settings.planes;
+        let planes_only = !world.body_contact.any() && capsule_speed == 0.0;
+        let planes_only = planes_only && world.manipulators.is_empty();
+        let impact = super::parallel_max(v.len(), |i| {
+            let speed = v[i].norm();
+            let reach = speed * frame_dt + h;
+            let near = !planes_only
+                || planes
+                    .iter()
+                    .any(|p| p.normal.dot(&x[i]) - p.offset <= reach);
+            if near {
+                speed_rate(i, speed, h, &shares)
+            } else {
+                0.0
+            }
+        });
+        let by_impact = (impact * frame_dt).ceil();
+        if by_impact > n {
+            n = by_impact.min(count(MAX_IMPACT_SUBSTEP_RATE));
+            limited_by = if by_impact > n { "speed cap" } else { "speed" };
         }
     }
     SubstepChoice {
