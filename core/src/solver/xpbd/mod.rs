@@ -72,11 +72,11 @@ const TRAVEL_PER_SUBSTEP: f64 = 0.1;
 /// that travel (a 1 cm rubber cube thrown down at 5 m/s inverts a cell at 0.7 of its size a
 /// substep, none at 0.35).
 const BODY_TRAVEL_PER_SUBSTEP: f64 = 0.25;
-/// Most substeps per second chosen for fast motion of nodes that can reach a floor or wall
-/// within the frame (500 a frame at 24): [`MAX_SPEED_SUBSTEP_RATE`] does not hold them, for a
+/// Most substeps per second chosen for a body about to hit a floor, wall or collider (500 a
+/// frame at 24; see [`impact_rate`]): [`MAX_SPEED_SUBSTEP_RATE`] does not hold it, for a
 /// layer pressed by more than [`TRAVEL_PER_SUBSTEP`] of a cell a substep folds (a 1 m rubber
 /// cube dropped 1 m on 64³ nodes held at 60 substeps a frame inverted a cell, 0.19 of a cell
-/// a substep; 128³ at 0.39 inverted 11 000; given 108 and 75 in its two impact frames, 64³
+/// a substep; 128³ at 0.39 inverted 11 000; given 108 and 84 in its two impact frames, 64³
 /// inverts none). This bounds a bake's time when cells are tiny against an impact.
 pub const MAX_IMPACT_SUBSTEP_RATE: f64 = 12_000.0;
 /// The same for a capsule's own speed (a thin capsule sweeping a soft body creases it).
@@ -379,9 +379,9 @@ fn kept_nodes(world: &World) -> Vec<u32> {
 /// touch, also enough that no node travels more than [`TRAVEL_PER_SUBSTEP`] of the shortest
 /// cell (a capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most
 /// [`MAX_SPEED_SUBSTEP_RATE`]; of a body the restitution moves as a whole at an impact, the
-/// share it moves is bounded by the body's thickness instead ([`speed_rate`]). Nodes that can
-/// reach a floor or wall within the frame keep the travel bound up to
-/// [`MAX_IMPACT_SUBSTEP_RATE`] instead. Each count is rounded up to a whole substep.
+/// share it moves is bounded by the body's thickness instead ([`speed_rate`]). A body about to
+/// hit a floor, wall or collider keeps the travel bound for its approach up to
+/// [`MAX_IMPACT_SUBSTEP_RATE`] ([`impact_rate`]). Each count is rounded up to a whole substep.
 pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice {
     if world.xpbd.is_none() {
         world.xpbd = Some(Model::build(world));
@@ -424,25 +424,7 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
             n = by_speed.min(count(MAX_SPEED_SUBSTEP_RATE).max(n));
             limited_by = if by_speed > n { "speed cap" } else { "speed" };
         }
-        // Nodes that can reach a floor or wall this frame (all of them when bodies, colliders
-        // or capsules are there to touch too) are not held by the speed cap.
-        let x = &world.nodes.position;
-        let planes = &world.settings.planes;
-        let planes_only = !world.body_contact.any() && capsule_speed == 0.0;
-        let planes_only = planes_only && world.manipulators.is_empty();
-        let impact = super::parallel_max(v.len(), |i| {
-            let speed = v[i].norm();
-            let reach = speed * frame_dt + h;
-            let near = !planes_only
-                || planes
-                    .iter()
-                    .any(|p| p.normal.dot(&x[i]) - p.offset <= reach);
-            if near {
-                speed_rate(i, speed, h, &shares)
-            } else {
-                0.0
-            }
-        });
+        let impact = impact_rate(world, frame_dt, h, &shares);
         let by_impact = (impact * frame_dt).ceil();
         if by_impact > n {
             n = by_impact.min(count(MAX_IMPACT_SUBSTEP_RATE));
@@ -454,6 +436,78 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
         dt: frame_dt / n,
         limited_by,
     }
+}
+
+/// Substeps per second the travel bound asks for a body about to hit a floor, a wall or a
+/// static collider: its centre's speed towards it, when the body can reach it within the
+/// frame (the impact its cells must stop; [`speed_rate`] for the share). The node speeds of
+/// a body sliding on a surface, or of a fold snapping, are not an impact and stay capped.
+fn impact_rate(world: &World, frame_dt: f64, h: f64, shares: &[ImpactShare]) -> f64 {
+    let (x, v, mass) = (
+        &world.nodes.position,
+        &world.nodes.velocity,
+        &world.nodes.mass,
+    );
+    let mut rate = 0.0f64;
+    for body in world.bodies.iter().filter(|b| !b.nodes.is_empty()) {
+        let nodes = body.nodes.clone();
+        let m: f64 = nodes.clone().map(|i| mass[i]).sum();
+        if m <= 0.0 {
+            continue;
+        }
+        let centre_v = nodes.clone().map(|i| v[i] * mass[i]).sum::<V3>() / m;
+        let mut closing = 0.0f64;
+        for plane in &world.settings.planes {
+            let towards = -plane.normal.dot(&centre_v);
+            let gap = (nodes
+                .clone()
+                .map(|i| plane.normal.dot(&x[i]) - plane.offset))
+            .fold(f64::INFINITY, f64::min);
+            if towards > 0.0 && gap <= towards * frame_dt + h {
+                closing = closing.max(towards);
+            }
+        }
+        let colliders = &world.body_contact.colliders;
+        if !colliders.is_empty() {
+            let lo = nodes
+                .clone()
+                .fold(V3::repeat(f64::INFINITY), |l, i| l.inf(&x[i]));
+            let hi = nodes
+                .clone()
+                .fold(V3::repeat(f64::NEG_INFINITY), |u, i| u.sup(&x[i]));
+            for c in colliders {
+                let (towards, gap) = box_approach((lo, hi), (c.lo, c.hi), centre_v);
+                if towards > 0.0 && gap <= towards * frame_dt + h {
+                    closing = closing.max(towards);
+                }
+            }
+        }
+        if closing > 0.0 {
+            rate = rate.max(speed_rate(nodes.start, closing, h, shares));
+        }
+    }
+    rate
+}
+
+/// How fast a body with bounding box `a` moving at `v` closes on the fixed box `b`, and the
+/// gap between the boxes: along the axis that parts them most (of overlapping boxes, the axis
+/// they overlap least along), towards `b`.
+fn box_approach(a: (V3, V3), b: (V3, V3), v: V3) -> (f64, f64) {
+    let mut best = (f64::NEG_INFINITY, 0.0, 0usize);
+    for k in 0..3 {
+        // Positive: apart by that much along k; negative: overlapping by that much.
+        let (above, below) = (a.0[k] - b.1[k], b.0[k] - a.1[k]);
+        let (apart, side) = if above >= below {
+            (above, 1.0)
+        } else {
+            (below, -1.0)
+        };
+        if apart > best.0 {
+            best = (apart, side, k);
+        }
+    }
+    let (apart, side, k) = best;
+    (-side * v[k], apart.max(0.0))
 }
 
 /// A body the restitution takes a share of the impacts of (`xpbd::restitution`): its node
