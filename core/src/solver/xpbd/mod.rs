@@ -448,42 +448,43 @@ fn impact_rate(world: &World, frame_dt: f64, h: f64, shares: &[ImpactShare]) -> 
         &world.nodes.velocity,
         &world.nodes.mass,
     );
+    let colliders = &world.body_contact.colliders;
     let mut rate = 0.0f64;
     for body in world.bodies.iter().filter(|b| !b.nodes.is_empty()) {
-        let nodes = body.nodes.clone();
-        let m: f64 = nodes.clone().map(|i| mass[i]).sum();
+        let nodes = || body.nodes.clone();
+        let (m, momentum) = nodes().fold((0.0, V3::zeros()), |(m, p), i| {
+            (m + mass[i], p + v[i] * mass[i])
+        });
         if m <= 0.0 {
             continue;
         }
-        let centre_v = nodes.clone().map(|i| v[i] * mass[i]).sum::<V3>() / m;
+        let centre_v = momentum / m;
+        let reaches = |towards: f64, gap: f64| towards > 0.0 && gap <= towards * frame_dt + h;
         let mut closing = 0.0f64;
-        for plane in &world.settings.planes {
-            let towards = -plane.normal.dot(&centre_v);
-            let gap = (nodes
-                .clone()
-                .map(|i| plane.normal.dot(&x[i]) - plane.offset))
-            .fold(f64::INFINITY, f64::min);
-            if towards > 0.0 && gap <= towards * frame_dt + h {
-                closing = closing.max(towards);
+        // A pass for each plane the body moves towards (usually the floor, while it falls).
+        for p in &world.settings.planes {
+            let towards = -p.normal.dot(&centre_v);
+            if towards > closing {
+                let gap = nodes().fold(f64::INFINITY, |g, i| g.min(p.normal.dot(&x[i]) - p.offset));
+                if reaches(towards, gap) {
+                    closing = towards;
+                }
             }
         }
-        let colliders = &world.body_contact.colliders;
         if !colliders.is_empty() {
-            let lo = nodes
-                .clone()
-                .fold(V3::repeat(f64::INFINITY), |l, i| l.inf(&x[i]));
-            let hi = nodes
-                .clone()
-                .fold(V3::repeat(f64::NEG_INFINITY), |u, i| u.sup(&x[i]));
+            let (lo, hi) = nodes().fold(
+                (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY)),
+                |(lo, hi), i| (lo.inf(&x[i]), hi.sup(&x[i])),
+            );
             for c in colliders {
                 let (towards, gap) = box_approach((lo, hi), (c.lo, c.hi), centre_v);
-                if towards > 0.0 && gap <= towards * frame_dt + h {
+                if reaches(towards, gap) {
                     closing = closing.max(towards);
                 }
             }
         }
         if closing > 0.0 {
-            rate = rate.max(speed_rate(nodes.start, closing, h, shares));
+            rate = rate.max(speed_rate(body.nodes.start, closing, h, shares));
         }
     }
     rate
