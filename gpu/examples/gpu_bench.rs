@@ -18,10 +18,9 @@
 #[path = "../tests/support/mod.rs"]
 mod support;
 
-use springbake_core::nalgebra::{Rotation3, Vector3};
+use springbake_core::nalgebra::Rotation3;
 use springbake_core::solver::device::{DeviceFrame, DeviceSolver};
-use springbake_core::solver::manipulator::ManipulatorKey;
-use springbake_core::solver::{ManipulatorTrack, World};
+use springbake_core::solver::World;
 use springbake_gpu::GpuSolver;
 use std::time::Instant;
 
@@ -127,19 +126,7 @@ fn on_gpu(mut world: World) -> (World, f64) {
 /// in the last frame, most inverted cells in a frame.
 fn live(n: u32, frames: usize, gpu: bool) -> (f64, f64, u32, usize) {
     let mut world = support::box_world(0.5, Rotation3::identity(), 0.0, n - 1, "jelly");
-    let key = |t: f64, x: f64| ManipulatorKey {
-        t,
-        position: Vector3::new(x, 0.2, 0.0),
-        yaw_deg: 90.0,
-    };
-    world.manipulators.push(ManipulatorTrack {
-        radius: 0.05,
-        length: 1.0,
-        friction: 0.3,
-        smooth: false,
-        keys: vec![key(0.0, -0.6), key(1.2, 0.6)],
-        up: Vector3::y(),
-    });
+    support::sweep_along_x(&mut world, (0.05, 1.0, 90.0), 0.2, (-0.6, 0.6), 1.2);
     if gpu {
         world = on_gpu(world).0;
     }

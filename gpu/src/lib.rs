@@ -312,6 +312,22 @@ impl GpuSolver {
         })
     }
 
+    /// Map `buffer` for reading once the work submitted so far has run.
+    fn map_read(&self, buffer: &wgpu::Buffer) -> Result<(), String> {
+        let (sender, receiver) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| drop(sender.send(r)));
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .map_err(|e| e.to_string())?;
+        receiver
+            .recv()
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())
+    }
+
     /// The first error the device reported (wgpu's validation, lost device, out of memory).
     fn failure(&self) -> Result<(), String> {
         match self.errors.lock().map(|mut e| e.take()) {
@@ -531,19 +547,7 @@ impl GpuSolver {
             );
         }
         self.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        self.staging
-            .map_async(wgpu::MapMode::Read, .., move |r| drop(sender.send(r)));
-        self.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| e.to_string())?;
-        receiver
-            .recv()
-            .map_err(|e| e.to_string())?
-            .map_err(|e| e.to_string())?;
+        self.map_read(&self.staging)?;
         let depth = {
             let view = self
                 .staging

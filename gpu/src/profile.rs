@@ -65,18 +65,7 @@ impl GpuSolver {
         encoder.resolve_query_set(&queries, 0..count, &resolved, 0);
         encoder.copy_buffer_to_buffer(&resolved, 0, &readback, 0, 8 * u64::from(count));
         self.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        readback.map_async(wgpu::MapMode::Read, .., move |r| drop(sender.send(r)));
-        self.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| e.to_string())?;
-        receiver
-            .recv()
-            .map_err(|e| e.to_string())?
-            .map_err(|e| e.to_string())?;
+        self.map_read(&readback)?;
         let ticks: Vec<u64> = {
             let view = readback.get_mapped_range(..).map_err(|e| e.to_string())?;
             bytemuck::cast_slice(&view[..]).to_vec()

@@ -357,8 +357,8 @@ fn add_sums(a: Sums, b: Sums) -> Sums {
     return Sums(a.a + b.a, a.b + b.b, a.c + b.c, a.d + b.d);
 }
 
-// Thread t of a chunk adds nodes t, t + 64, … in order; then a fixed tree.
-fn reduce_chunk(chunk: u32, t: u32, own: Sums) {
+// The workgroup's `own` sums added by a fixed tree (every thread calls it; all get the sum).
+fn sums_tree(t: u32, own: Sums) -> Sums {
     scratch[t] = own;
     workgroupBarrier();
     for (var half = WG / 2u; half > 0u; half = half / 2u) {
@@ -367,8 +367,14 @@ fn reduce_chunk(chunk: u32, t: u32, own: Sums) {
         }
         workgroupBarrier();
     }
+    return scratch[0];
+}
+
+// Thread t of a chunk adds nodes t, t + 64, … in order; then a fixed tree.
+fn reduce_chunk(chunk: u32, t: u32, own: Sums) {
+    let total = sums_tree(t, own);
     if t == 0u {
-        sums[chunk] = scratch[0];
+        sums[chunk] = total;
     }
 }
 
@@ -431,15 +437,7 @@ fn body_sums(body: Body, t: u32) -> Sums {
     for (var k = body.chunk_start + t; k < body.chunk_end; k += WG) {
         own = add_sums(own, sums[k]);
     }
-    scratch[t] = own;
-    workgroupBarrier();
-    for (var half = WG / 2u; half > 0u; half = half / 2u) {
-        if t < half {
-            scratch[t] = add_sums(scratch[t], scratch[t + half]);
-        }
-        workgroupBarrier();
-    }
-    return scratch[0];
+    return sums_tree(t, own);
 }
 
 // Inertia about the centre c (relative to the reference) from the sums about the reference.
@@ -711,6 +709,19 @@ var<workgroup> push_scratch: array<vec4<f32>, 64>;
 
 const PUSH_CHUNK: u32 = 1024u;
 
+// The workgroup's `own` values summed by a fixed tree (every thread calls it; all get the sum).
+fn push_tree(t: u32, own: vec4<f32>) -> vec4<f32> {
+    push_scratch[t] = own;
+    workgroupBarrier();
+    for (var half = WG / 2u; half > 0u; half = half / 2u) {
+        if t < half {
+            push_scratch[t] += push_scratch[t + half];
+        }
+        workgroupBarrier();
+    }
+    return push_scratch[0];
+}
+
 // Chunk `wg.x` of the node and point slots into its partial sum.
 @compute @workgroup_size(64)
 fn push_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
@@ -721,16 +732,9 @@ fn push_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id)
     for (var i = start + lid.x; i < end; i += WG) {
         own += push[i];
     }
-    push_scratch[lid.x] = own;
-    workgroupBarrier();
-    for (var half = WG / 2u; half > 0u; half = half / 2u) {
-        if lid.x < half {
-            push_scratch[lid.x] += push_scratch[lid.x + half];
-        }
-        workgroupBarrier();
-    }
+    let total = push_tree(lid.x, own);
     if lid.x == 0u {
-        push[slots + wg.x] = push_scratch[0];
+        push[slots + wg.x] = total;
     }
 }
 
@@ -743,16 +747,9 @@ fn push_finish(@builtin(local_invocation_id) lid: vec3<u32>) {
     for (var c = lid.x; c < params.push_chunks; c += WG) {
         own += push[slots + c];
     }
-    push_scratch[lid.x] = own;
-    workgroupBarrier();
-    for (var half = WG / 2u; half > 0u; half = half / 2u) {
-        if lid.x < half {
-            push_scratch[lid.x] += push_scratch[lid.x + half];
-        }
-        workgroupBarrier();
-    }
+    let total = push_tree(lid.x, own);
     if lid.x == 0u {
-        push[slots + params.push_chunks + substep.index] = push_scratch[0];
+        push[slots + params.push_chunks + substep.index] = total;
     }
 }
 

@@ -15,9 +15,8 @@
 
 mod support;
 
-use springbake_core::nalgebra::{Rotation3, Vector3};
-use springbake_core::solver::manipulator::ManipulatorKey;
-use springbake_core::solver::{ManipulatorTrack, World};
+use springbake_core::nalgebra::Rotation3;
+use springbake_core::solver::World;
 use springbake_gpu::GpuSolver;
 use support::box_world;
 
@@ -109,19 +108,7 @@ fn a_tilted_box_lands_on_its_corner_and_tumbles_as_on_the_cpu() {
 fn a_jelly_block_swept_by_the_manipulator_moves_as_on_the_cpu() {
     let make = || {
         let mut w = box_world(0.3, Rotation3::identity(), 0.0, 6, "jelly");
-        let key = |t: f64, x: f64| ManipulatorKey {
-            t,
-            position: Vector3::new(x, 0.12, 0.0),
-            yaw_deg: 0.0,
-        };
-        w.manipulators.push(ManipulatorTrack {
-            radius: 0.04,
-            length: 0.6,
-            friction: 0.3,
-            smooth: false,
-            keys: vec![key(0.0, -0.45), key(0.6, 0.45)],
-            up: Vector3::y(),
-        });
+        support::sweep_along_x(&mut w, (0.04, 0.6, 0.0), 0.12, (-0.45, 0.45), 0.6);
         w
     };
     let mut cpu = make();

@@ -7,7 +7,8 @@ use springbake_core::lattice::{
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Rotation3, Vector3};
 use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{Integrator, Plane, World, WorldSettings};
+use springbake_core::solver::manipulator::ManipulatorKey;
+use springbake_core::solver::{Integrator, ManipulatorTrack, Plane, World, WorldSettings};
 
 /// A world holding a box of edge `size` (turned by `tilt`, its lowest point `height` above a
 /// floor at y = 0) as the product sets up a mesh: `cells` along its side, display-surface
@@ -46,4 +47,28 @@ pub fn box_world(size: f64, tilt: Rotation3<f64>, height: f64, cells: u32, prese
     let (samples, areas) = surface_samples(&points, &triangles, 0.5 * lattice.cell_size);
     w.add_contact_surface(h, &lattice, &samples, &areas);
     w
+}
+
+/// A capsule manipulator (friction 0.3) of `radius` and `length`, yawed `yaw_deg` (0: its axis
+/// along x), moved at height `y` along x from `from` to `to` in the first `seconds`.
+pub fn sweep_along_x(
+    w: &mut World,
+    (radius, length, yaw_deg): (f64, f64, f64),
+    y: f64,
+    (from, to): (f64, f64),
+    seconds: f64,
+) {
+    let key = |t: f64, x: f64| ManipulatorKey {
+        t,
+        position: Vector3::new(x, y, 0.0),
+        yaw_deg,
+    };
+    w.manipulators.push(ManipulatorTrack {
+        radius,
+        length,
+        friction: 0.3,
+        smooth: false,
+        keys: vec![key(0.0, from), key(seconds, to)],
+        up: Vector3::y(),
+    });
 }
