@@ -120,25 +120,34 @@ impl SpringSet {
 /// Chunk length for parallel loops: small systems stay on one thread.
 pub(crate) const PAR_CHUNK: usize = 2048;
 
-/// Sum `f(i)` over `0..n` in fixed chunks, so the result does not depend on the thread count.
-/// The chunk sums are added in chunk order; they are computed in batches held on the stack, so
-/// nothing is allocated.
+/// Sum `f(i)` over `0..n` in fixed chunks, so the result does not depend on the thread count
+/// (see [`fold_chunks`]).
 pub(crate) fn deterministic_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
+    // −0.0 like `Iterator::sum` of floats: the same bits as summing the collected chunk sums.
+    fold_chunks(n, -0.0, |r| r.map(&f).sum(), |total, p| total + p)
+}
+
+/// `chunk` over fixed [`PAR_CHUNK`]-long ranges of `0..n` on the pool, their results folded
+/// into `init` in chunk order: the same on any thread count. They are computed in batches held
+/// on the stack, so nothing is allocated.
+pub(crate) fn fold_chunks<T: Copy + Default + Send>(
+    n: usize,
+    init: T,
+    chunk: impl Fn(std::ops::Range<usize>) -> T + Sync,
+    fold: impl Fn(T, T) -> T,
+) -> T {
     use rayon::prelude::*;
     const BATCH: usize = 64;
     let chunks = n.div_ceil(PAR_CHUNK);
-    // −0.0 like `Iterator::sum` of floats: the same bits as summing the collected chunk sums.
-    let mut total = -0.0;
+    let mut total = init;
     for first in (0..chunks).step_by(BATCH) {
-        let mut partial = [0.0f64; BATCH];
+        let mut partial = [T::default(); BATCH];
         let batch = &mut partial[..BATCH.min(chunks - first)];
         batch.par_iter_mut().enumerate().for_each(|(j, out)| {
             let c = first + j;
-            *out = (c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n)).map(&f).sum();
+            *out = chunk(c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n));
         });
-        for p in batch.iter() {
-            total += p;
-        }
+        total = batch.iter().fold(total, |t, &p| fold(t, p));
     }
     total
 }

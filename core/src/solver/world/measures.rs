@@ -226,25 +226,15 @@ pub(super) fn cell_inverted_at(nodes: &[u32; 8], positions: &[Vector3<f64>]) -> 
 }
 
 /// A hash of the positions' bits (FNV-1a over fixed chunks, the chunks' hashes folded in
-/// order, batches of them on the pool as in [`deterministic_sum`]): the same on any thread
-/// count, different after any move, and no allocation (a frame's step allocates nothing).
+/// order by `solver::fold_chunks`): the same on any thread count, different after any move, and no
+/// allocation (a frame's step allocates nothing).
 fn fingerprint(positions: &[Vector3<f64>]) -> u64 {
     const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
     const PRIME: u64 = 0x0000_0100_0000_01b3;
-    const BATCH: usize = 64;
     let fold = |h: u64, v: u64| (h ^ v).wrapping_mul(PRIME);
-    let chunks = positions.len().div_ceil(PAR_CHUNK);
-    let mut hash = OFFSET;
-    for first in (0..chunks).step_by(BATCH) {
-        let mut partial = [0u64; BATCH];
-        let batch = &mut partial[..BATCH.min(chunks - first)];
-        batch.par_iter_mut().enumerate().for_each(|(j, out)| {
-            let c = first + j;
-            let part = &positions[c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(positions.len())];
-            *out = (part.iter().flat_map(|p| [p.x, p.y, p.z]))
-                .fold(OFFSET, |h, v| fold(h, v.to_bits()));
-        });
-        hash = batch.iter().fold(hash, |h, &v| fold(h, v));
-    }
-    hash
+    let chunk = |r: std::ops::Range<usize>| {
+        (positions[r].iter().flat_map(|p| [p.x, p.y, p.z]))
+            .fold(OFFSET, |h, v| fold(h, v.to_bits()))
+    };
+    super::super::fold_chunks(positions.len(), OFFSET, chunk, fold)
 }
