@@ -316,3 +316,24 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
     // The boxes met, for most of the run.
     assert!(touched > 200, "{touched} steps in contact");
 }
+
+/// A world gets a thread per 2048 of its parallel size, at least one, at most what the pool
+/// has: the standard scene's 4096 XPBD nodes four threads, a 613-node demo one, a 64³ lattice
+/// every thread of a 16-core machine.
+#[test]
+fn worlds_get_threads_by_their_size() {
+    assert_eq!(threads_for(613 * XPBD_PARALLEL_WEIGHT, 16), 1);
+    assert_eq!(threads_for(4096 * XPBD_PARALLEL_WEIGHT, 16), 4);
+    assert_eq!(threads_for(4096 * XPBD_PARALLEL_WEIGHT, 2), 2);
+    assert_eq!(threads_for(65 * 65 * 65 * XPBD_PARALLEL_WEIGHT, 16), 16);
+    assert_eq!(threads_for(10, 0), 1);
+}
+
+/// A pool sized for a world is built once and kept: the second ask gets the same pool.
+#[test]
+fn sized_pools_are_built_once() {
+    let a = sized_pool(1).expect("one thread");
+    let b = sized_pool(1).expect("one thread");
+    assert!(std::ptr::eq(a, b));
+    assert_eq!(a.current_num_threads(), 1);
+}
