@@ -447,6 +447,34 @@ impl CellSet {
         }
     }
 
+    /// The smallest corner volume ratio `det F` of any cell at positions `x`: 1 at rest,
+    /// [`COLLAPSE_J`] where the barrier starts, 0 or less for an inverted corner. Every corner
+    /// of a cube cell counts (what [`crate::lattice::cell_is_inverted`] tests), and the one
+    /// element of a tet. A minimum, so the same on any thread count; `∞` with no cells.
+    pub(crate) fn most_collapsed(&self, x: &[V3]) -> f64 {
+        (0..self.nodes.len())
+            .into_par_iter()
+            .with_min_len(super::super::PAR_CHUNK)
+            .map(|j| {
+                let local = self.nodes[j].map(|n| x[n as usize]);
+                match self.shape[j] {
+                    Shape::Cube { inv_h, .. } => (0..8)
+                        .map(|c| {
+                            let s = corner_signs(c, inv_h);
+                            let f = [1, 2, 4].map(|bit| local[c ^ bit] - local[c]);
+                            (f[0] * s[0]).dot(&(f[1] * s[1]).cross(&(f[2] * s[2])))
+                        })
+                        .fold(f64::INFINITY, f64::min),
+                    shape @ Shape::Tet { .. } => {
+                        let mut ratio = f64::INFINITY;
+                        for_each_element(shape, |e| ratio = volume_ratio(&e.gradient(&local)).0);
+                        ratio
+                    }
+                }
+            })
+            .reduce(|| f64::INFINITY, f64::min)
+    }
+
     /// Elastic energy of every cell at positions `x`, J (for the report's energy balance),
     /// summed over fixed chunks of cells on the pool: the same bits on any thread count. Two
     /// a frame; on a GPU's 128³ lattice, serially, they cost the frame 0.75 s of the CPU.

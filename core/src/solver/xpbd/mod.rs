@@ -29,10 +29,12 @@
 mod bodies;
 mod cells;
 mod contact;
+mod crowding;
 mod glue;
 mod lanes;
 mod restitution;
 
+use self::crowding::Crowding;
 use super::body_contact::step_contacts_of;
 use super::deformation_damping::RigidScratch;
 use super::diagnostics::StepStats;
@@ -143,6 +145,8 @@ pub(crate) struct Model {
     restitution: Restitution,
     /// Parts that interpenetrate at the start, glued where they overlap (`glue`).
     glue: Glue,
+    /// The substeps' doublings for cells near collapse (`crowding`).
+    crowding: Crowding,
 }
 
 /// A display-surface point as the contact pass reads it (`World::surface`'s records).
@@ -269,6 +273,7 @@ impl Model {
             logged_once: false,
             restitution: Restitution::build(world),
             glue: Glue::default(),
+            crowding: Crowding::default(),
         }
     }
 
@@ -431,11 +436,30 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
             limited_by = if by_impact > n { "speed cap" } else { "speed" };
         }
     }
+    if sized {
+        let cap = count(MAX_IMPACT_SUBSTEP_RATE);
+        if let Some(crowded) = crowded_substeps(world, n, cap) {
+            n = crowded;
+            limited_by = "collapse";
+        }
+    }
     SubstepChoice {
         substeps: n as u32,
         dt: frame_dt / n,
         limited_by,
     }
+}
+
+/// The substeps a frame takes instead of `n` while a cell is near collapse (the [`crowding`]
+/// module), at most `cap`; `None` when that is not more than `n`.
+fn crowded_substeps(world: &mut World, n: f64, cap: f64) -> Option<f64> {
+    let (time, x) = (world.time, &world.nodes.position);
+    let model = world.xpbd.as_mut()?;
+    let ratio = model.cells.most_collapsed(x);
+    let max_level = (cap / n).log2().ceil().max(0.0) as u32;
+    let level = model.crowding.update(time, ratio, max_level);
+    let crowded = (n * f64::from(1u32 << level)).min(cap);
+    (crowded > n).then_some(crowded)
 }
 
 /// Substeps per second the travel bound asks for a body about to hit a floor, a wall or a
