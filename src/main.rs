@@ -518,7 +518,10 @@ fn run_bake(
         );
     }
     if inverted > 0 {
-        eprintln!("springbake: warning: up to {inverted} lattice cells inverted during the bake; try more cells, a softer impact or springs = \"both\"");
+        eprintln!(
+            "springbake: warning: {}",
+            inverted_warning(loaded, &r.frames)
+        );
     }
     let gains: Vec<_> = r
         .frames
@@ -610,4 +613,46 @@ fn watch(
             message: e.to_string(),
         })?;
     Ok(())
+}
+
+/// The warning for a bake whose report counts inverted cells: how many at most, in which
+/// frames, and what to change for the integrator the scene uses.
+fn inverted_warning(
+    loaded: &LoadedScene,
+    frames: &[springbake_core::solver::FrameDiagnostics],
+) -> String {
+    let with: Vec<&springbake_core::solver::FrameDiagnostics> =
+        frames.iter().filter(|f| f.inverted_cells > 0).collect();
+    let most = with.iter().map(|f| f.inverted_cells).max().unwrap_or(0);
+    let mut listed: Vec<String> = with.iter().take(5).map(|f| f.frame.to_string()).collect();
+    if with.len() > listed.len() {
+        listed.push(format!("… {} frames in all", with.len()));
+    }
+    let advice = match loaded.scene.solver.integrator {
+        springbake_core::scene::IntegratorSpec::Xpbd
+            if loaded.scene.solver.substeps != springbake_core::scene::SubstepSpec::Auto =>
+        {
+            let fixed = frames.iter().map(|f| f.substeps).max().unwrap_or(0);
+            format!(
+                "they took the {fixed} substeps the scene sets; try [solver] substeps = \"auto\" \
+                 or {}",
+                2 * fixed.max(1)
+            )
+        }
+        springbake_core::scene::IntegratorSpec::Xpbd => {
+            // Twice what the folding frames took, and no fewer than any frame took.
+            let folding = with.iter().map(|f| f.substeps).max().unwrap_or(0);
+            let busiest = frames.iter().map(|f| f.substeps).max().unwrap_or(0);
+            format!(
+                "they took up to {folding} substeps; try [solver] substeps = {} (or a softer push \
+                 or impact)",
+                (2 * folding).max(busiest).max(1)
+            )
+        }
+        _ => "try more cells, a softer impact or springs = \"both\"".to_string(),
+    };
+    format!(
+        "up to {most} lattice cells inverted during the bake (frame {}); {advice}",
+        listed.join(", ")
+    )
 }

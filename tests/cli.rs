@@ -600,6 +600,41 @@ fn a_body_that_starts_through_the_floor_is_named_before_the_bake() {
     assert!(!err.contains("through the floor"), "{err}");
 }
 
+/// A bake that folds cells says so on stderr with the frames, and for the XPBD solver what to
+/// set: a jelly cube thrown at the floor at 10 m/s with 4 substeps a frame folds; the
+/// automatic substeps it is pointed to do not.
+#[test]
+fn folded_cells_are_warned_of_with_their_frames_and_the_substeps_to_try() {
+    let dir = tempfile::tempdir().unwrap();
+    support::cube(dir.path(), "cube.obj");
+    let scene = |substeps: &str| {
+        format!(
+            "[output]\npath = \"out.pc2\"\nframes = 12\n[solver]\nsubsteps = {substeps}\n\
+             [world]\nfloor = 0.0\n[[body]]\nsource = \"cube.obj\"\ncells = 4\n\
+             material = \"jelly\"\noffset = [0.0, 0.5, 0.0]\nvelocity = [0.0, -10.0, 0.0]\n"
+        )
+    };
+    std::fs::write(dir.path().join("few.toml"), scene("4")).unwrap();
+    let o = support::springbake_in(dir.path(), &["bake", "few.toml", "--progress", "quiet"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("lattice cells inverted during the bake (frame 2, 3"),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "they took the 4 substeps the scene sets; try [solver] substeps = \"auto\" or 8"
+        ),
+        "{err}"
+    );
+    std::fs::write(dir.path().join("auto.toml"), scene("\"auto\"")).unwrap();
+    let o = support::springbake_in(dir.path(), &["bake", "auto.toml", "--progress", "quiet"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("inverted"), "{err}");
+}
+
 /// Two cubes of one OBJ sunk a quarter of a metre into each other are named before the bake
 /// as glued (they would otherwise be thrown apart); two a centimetre apart are not.
 #[test]
