@@ -131,8 +131,9 @@ fn warnings(report: &Report) -> Vec<String> {
         if worst.inverted_cells > 0 {
             out.push(format!(
                 "Up to {} lattice cells were inverted (frame {}): the body folded through itself \
-                 there. Use more cells, a softer impact (lower speed), or a stiffer material.",
-                worst.inverted_cells, worst.frame
+                 there. Set [solver] substeps above the {} that frame took, soften the impact \
+                 (lower speed), or use a stiffer material.",
+                worst.inverted_cells, worst.frame, worst.substeps
             ));
         }
     }
