@@ -35,7 +35,7 @@
 //! local copies of their eight nodes and written back in cell order, so any thread count gives
 //! the same bits.
 
-use super::lanes::{solve_cubes, Cubes, LANES};
+use super::lanes::{solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -397,10 +397,6 @@ impl CellSet {
                             return;
                         }
                         let cell = |k: usize| first + k;
-                        for (k, local) in locals.iter_mut().enumerate() {
-                            *local = nodes[cell(k)].map(|n| xs[n as usize]);
-                        }
-                        let wl = std::array::from_fn(|k| nodes[cell(k)].map(|n| w[n as usize]));
                         let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
                             Shape::Cube { inv_h, .. } => inv_h,
                             Shape::Tet { .. } => 0.0,
@@ -412,7 +408,12 @@ impl CellSet {
                             axis_root: std::array::from_fn(|k| axis[cell(k)]),
                             odd: odd == Some(true),
                         };
-                        solve_cubes(locals, &wl, &cubes);
+                        let from = Gather {
+                            nodes: &nodes[first..first + LANES],
+                            x: xs,
+                            w,
+                        };
+                        solve_cubes(locals, &from, &cubes);
                     });
             }
             for (cell, local) in nodes.iter().zip(out.iter()) {
@@ -894,7 +895,17 @@ mod tests {
             axis_root: axis,
             odd: true,
         };
-        solve_cubes(&mut cells, &w, &cubes);
+        let nodes: Vec<[u32; 8]> = (0..LANES as u32)
+            .map(|l| std::array::from_fn(|k| 8 * l + k as u32))
+            .collect();
+        let x: Vec<V3> = cells.iter().flatten().copied().collect();
+        let wn: Vec<f64> = w.iter().flatten().copied().collect();
+        let from = Gather {
+            nodes: &nodes,
+            x: &x,
+            w: &wn,
+        };
+        solve_cubes(&mut cells, &from, &cubes);
         assert_eq!(cells, scalar);
     }
 

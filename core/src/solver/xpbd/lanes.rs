@@ -30,6 +30,11 @@ fn map(f: impl Fn(usize) -> f64) -> L {
     std::array::from_fn(f)
 }
 
+#[inline(always)]
+fn map_ref<'a>(f: impl Fn(usize) -> &'a V3) -> [&'a V3; LANES] {
+    std::array::from_fn(f)
+}
+
 impl V {
     const ZERO: V = V {
         x: [0.0; LANES],
@@ -115,20 +120,30 @@ pub(crate) struct Cubes {
     pub odd: bool,
 }
 
-/// Solve the four cells whose local node copies are `cells` (inverse masses `w`), with
-/// 256-bit AVX arithmetic where the CPU has it: the same IEEE operations in the same order
-/// (AVX without FMA fuses nothing), so the same bits on every CPU.
+/// Where a group's nodes come from: the four cells' node ids (`nodes`, one cell a lane) into
+/// the positions `x` and inverse masses `w`.
+pub(crate) struct Gather<'a> {
+    pub nodes: &'a [[u32; 8]],
+    pub x: &'a [V3],
+    pub w: &'a [f64],
+}
+
+/// Solve the four cells `from` names, writing their nodes' new positions to `cells` (one
+/// cell a lane), with 256-bit AVX arithmetic where the CPU has it: the same IEEE operations
+/// in the same order (AVX without FMA fuses nothing), so the same bits on every CPU. The
+/// nodes are read straight into the lanes (a copy of each cell's eight nodes first, then the
+/// lanes from it, cost the standard scene a tenth of its time in copies).
 // Kept out of line: inlined into the colour loop it zeroed its lane buffers with a memset
 // every call and the standard scene ran 11 % slower.
 #[inline(never)]
-pub(crate) fn solve_cubes(cells: &mut [[V3; 8]], w: &[[f64; 8]; LANES], p: &Cubes) {
+pub(crate) fn solve_cubes(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
     #[cfg(target_arch = "x86_64")]
     if avx_available() {
         // SAFETY: `avx_available` found the CPU feature the function is compiled for.
         #[allow(unsafe_code)]
-        return unsafe { solve_cubes_avx(cells, w, p) };
+        return unsafe { solve_cubes_avx(cells, from, p) };
     }
-    solve_cubes_here(cells, w, p)
+    solve_cubes_here(cells, from, p)
 }
 
 /// Whether this CPU has AVX (checked once).
@@ -141,21 +156,23 @@ fn avx_available() -> bool {
 /// [`solve_cubes_here`] compiled for AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-fn solve_cubes_avx(cells: &mut [[V3; 8]], w: &[[f64; 8]; LANES], p: &Cubes) {
-    solve_cubes_here(cells, w, p)
+fn solve_cubes_avx(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
+    solve_cubes_here(cells, from, p)
 }
 
 #[inline(always)]
-fn solve_cubes_here(cells: &mut [[V3; 8]], w: &[[f64; 8]; LANES], p: &Cubes) {
+fn solve_cubes_here(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
+    let nodes: &[[u32; 8]; LANES] = from.nodes.try_into().expect("a group is four cells");
     let mut x = [V::ZERO; 8];
     for (k, xk) in x.iter_mut().enumerate() {
+        let at: [&V3; LANES] = map_ref(|l| &from.x[nodes[l][k] as usize]);
         *xk = V {
-            x: map(|l| cells[l][k].x),
-            y: map(|l| cells[l][k].y),
-            z: map(|l| cells[l][k].z),
+            x: map(|l| at[l].x),
+            y: map(|l| at[l].y),
+            z: map(|l| at[l].z),
         };
     }
-    let wk: [L; 8] = std::array::from_fn(|k| map(|l| w[l][k]));
+    let wk: [L; 8] = std::array::from_fn(|k| map(|l| from.w[nodes[l][k] as usize]));
     volume(&mut x, &wk, p);
     let corners = if p.odd { [1, 2, 4, 7] } else { [0, 3, 5, 6] };
     for c in corners {
