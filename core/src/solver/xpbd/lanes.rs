@@ -30,6 +30,28 @@ fn map(f: impl Fn(usize) -> f64) -> L {
     std::array::from_fn(f)
 }
 
+/// Three lane vectors (a corner's edges or gradients), `$e` written out for `$k` = 0, 1, 2: as
+/// `std::array::from_fn` calls, or closures, the compiler kept them out of line (9 % of the
+/// standard scene's samples).
+macro_rules! three {
+    (|$k:ident| $e:expr) => {
+        [
+            {
+                let $k = 0;
+                $e
+            },
+            {
+                let $k = 1;
+                $e
+            },
+            {
+                let $k = 2;
+                $e
+            },
+        ]
+    };
+}
+
 #[inline(always)]
 fn map_ref<'a>(f: impl Fn(usize) -> &'a V3) -> [&'a V3; LANES] {
     std::array::from_fn(f)
@@ -259,7 +281,7 @@ fn project(
 fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = signs(c, &p.inv_h);
-    let f: [V; 3] = std::array::from_fn(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
+    let f: [V; 3] = three!(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
     // Green strain, weighted by the axes' stiffness.
     let mut e = [[[0.0; LANES]; 3]; 3];
     let mut we = [[[0.0; LANES]; 3]; 3];
@@ -286,7 +308,7 @@ fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
             0.0
         }
     });
-    let g: [V; 3] = std::array::from_fn(|k| {
+    let g: [V; 3] = three!(|k| {
         f[0].scale(&we[0][k])
             .add(&f[1].scale(&we[1][k]))
             .add(&f[2].scale(&we[2][k]))
@@ -301,7 +323,7 @@ fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
 fn barrier(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = signs(c, &p.inv_h);
-    let f: [V; 3] = std::array::from_fn(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
+    let f: [V; 3] = three!(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
     let first = f[1].cross(&f[2]);
     let j = f[0].dot(&first);
     let on: [bool; LANES] = std::array::from_fn(|l| j[l] < COLLAPSE_J);
@@ -309,7 +331,7 @@ fn barrier(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
         return;
     }
     let cof = [first, f[2].cross(&f[0]), f[0].cross(&f[1])];
-    let g: [V; 3] = std::array::from_fn(|k| cof[k].scale(&s[k]));
+    let g: [V; 3] = three!(|k| cof[k].scale(&s[k]));
     let value = map(|l| j[l] - COLLAPSE_J);
     project(x, w, c, g, &value, &[0.0; LANES], &on);
 }
