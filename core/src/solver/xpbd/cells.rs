@@ -461,9 +461,8 @@ impl CellSet {
                 match self.shape[j] {
                     Shape::Cube { inv_h, .. } => (0..8)
                         .map(|c| {
-                            let s = corner_signs(c, inv_h);
-                            let f = [1, 2, 4].map(|bit| local[c ^ bit] - local[c]);
-                            (f[0] * s[0]).dot(&(f[1] * s[1]).cross(&(f[2] * s[2])))
+                            let f = corner_columns(&local, c, inv_h);
+                            f[0].dot(&f[1].cross(&f[2]))
                         })
                         .fold(f64::INFINITY, f64::min),
                     shape @ Shape::Tet { .. } => {
@@ -722,7 +721,7 @@ fn solve_corner(
 fn solve_barrier(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = corner_signs(c, inv_h);
-    let f = [0, 1, 2].map(|k| (x[nb[k]] - x[c]) * s[k]);
+    let f = corner_columns(x, c, inv_h);
     let first = f[1].cross(&f[2]);
     let j = f[0].dot(&first);
     if j >= COLLAPSE_J {
@@ -743,6 +742,15 @@ fn solve_barrier(x: &mut [V3; 8], w: &[f64; 8], c: usize, inv_h: f64) {
     for k in 0..3 {
         x[nb[k]] += g[k] * (w[nb[k]] * dl);
     }
+}
+
+/// The columns of corner `c`'s `F`: its three edges (to `c^1`, `c^2`, `c^4`) times `s_k / h`,
+/// so a cell at rest gives the identity and `det F` is the corner's volume ratio.
+#[inline(always)]
+fn corner_columns(x: &[V3; 8], c: usize, inv_h: f64) -> [V3; 3] {
+    let s = corner_signs(c, inv_h);
+    let nb = [c ^ 1, c ^ 2, c ^ 4];
+    [0, 1, 2].map(|k| (x[nb[k]] - x[c]) * s[k])
 }
 
 /// `s_k / h` of corner `c`'s three edges (`+1/h` where the edge runs along +axis).
