@@ -113,30 +113,50 @@ fn stiff_balls_rebound_and_a_steel_box_settles_without_gaining_energy() {
     );
 }
 
-/// The papers' headline scene: a 30 cm jelly block on the floor swept broadside by a 4 cm
-/// capsule at 2 m/s (the spring lattice folds 167 of its 512 cells).
-#[test]
-fn no_cell_of_a_jelly_block_swept_by_the_capsule_inverts() {
-    let block = mesh(box_mesh([-0.15, 0.0, -0.15], [0.15, 0.3, 0.15]), 8);
+/// A jelly cube of edge `size` (`cells` along it) standing on the floor, and a capsule of
+/// `(radius, length)` across it, `height` up, moved along x through the `(time, x)` keys.
+fn jelly_block_swept(
+    size: f64,
+    cells: u32,
+    (radius, length): (f64, f64),
+    height: f64,
+    keys: [(f64, f64); 2],
+) -> World {
+    let half = 0.5 * size;
+    let block = mesh(box_mesh([-half, 0.0, -half], [half, size, half]), cells);
     let mut w = world(
         &block,
         &Material::preset("jelly").unwrap(),
         Vector3::zeros(),
         true,
     );
-    let key = |t: f64, x: f64| ManipulatorKey {
-        t,
-        position: Vector3::new(x, 0.15, 0.0),
-        yaw_deg: 90.0,
-    };
     w.manipulators.push(ManipulatorTrack {
-        radius: 0.04,
-        length: 0.6,
+        radius,
+        length,
         friction: 0.3,
         smooth: false,
-        keys: vec![key(0.0, -0.6), key(0.6, 0.6)],
+        keys: keys
+            .map(|(t, x)| ManipulatorKey {
+                t,
+                position: Vector3::new(x, height, 0.0),
+                yaw_deg: 90.0,
+            })
+            .to_vec(),
         up: Vector3::y(),
     });
+    w
+}
+
+/// The mean x of the world's nodes, m.
+fn mean_x(w: &World) -> f64 {
+    w.nodes.position.iter().map(|p| p.x).sum::<f64>() / w.nodes.len() as f64
+}
+
+/// The papers' headline scene: a 30 cm jelly block on the floor swept broadside by a 4 cm
+/// capsule at 2 m/s (the spring lattice folds 167 of its 512 cells).
+#[test]
+fn no_cell_of_a_jelly_block_swept_by_the_capsule_inverts() {
+    let mut w = jelly_block_swept(0.3, 8, (0.04, 0.6), 0.15, [(0.0, -0.6), (0.6, 0.6)]);
     let mut pushed = 0.0f64;
     for f in 1..=24 {
         let d = frame(&mut w, f);
@@ -144,7 +164,7 @@ fn no_cell_of_a_jelly_block_swept_by_the_capsule_inverts() {
         pushed = pushed.max(d.manipulator_reaction[0].abs());
     }
     // The block was pushed along, and the manipulator felt it.
-    let centre_x: f64 = w.nodes.position.iter().map(|p| p.x).sum::<f64>() / w.nodes.len() as f64;
+    let centre_x = mean_x(&w);
     assert!(centre_x > 0.05, "block centre at x = {centre_x}");
     assert!(pushed > 0.1, "reaction {pushed} N");
 }
@@ -156,26 +176,7 @@ fn no_cell_of_a_jelly_block_swept_by_the_capsule_inverts() {
 /// that start with a corner near collapse now double their substeps.
 #[test]
 fn a_jelly_cube_tipped_over_its_stuck_edge_does_not_fold() {
-    let block = mesh(box_mesh([-0.25, 0.0, -0.25], [0.25, 0.5, 0.25]), 15);
-    let mut w = world(
-        &block,
-        &Material::preset("jelly").unwrap(),
-        Vector3::zeros(),
-        true,
-    );
-    let key = |t: f64, x: f64| ManipulatorKey {
-        t,
-        position: Vector3::new(x, 0.2, 0.0),
-        yaw_deg: 90.0,
-    };
-    w.manipulators.push(ManipulatorTrack {
-        radius: 0.05,
-        length: 0.8,
-        friction: 0.3,
-        smooth: false,
-        keys: vec![key(0.0, -0.35), key(1.5, 1.15)],
-        up: Vector3::y(),
-    });
+    let mut w = jelly_block_swept(0.5, 15, (0.05, 0.8), 0.2, [(0.0, -0.35), (1.5, 1.15)]);
     let (mut fewest, mut most) = (u32::MAX, 0);
     for f in 1..=45 {
         let d = w.advance_frame(1.0 / 60.0, f, &|| false).unwrap();
@@ -187,7 +188,7 @@ fn a_jelly_cube_tipped_over_its_stuck_edge_does_not_fold() {
     }
     // The crushed frames took more substeps than the calm ones, not all of them.
     assert!(most >= 2 * fewest, "substeps {fewest}..{most}");
-    let centre_x: f64 = w.nodes.position.iter().map(|p| p.x).sum::<f64>() / w.nodes.len() as f64;
+    let centre_x = mean_x(&w);
     assert!(centre_x > 0.1, "block centre at x = {centre_x}");
 }
 
