@@ -67,6 +67,15 @@ fn inverted_note(r: &Run) -> String {
 /// Each stage's name and microseconds per substep.
 type Stages = Vec<(&'static str, f64)>;
 
+/// What [`profile`] measured: each stage's µs per substep, a frame's ms through
+/// `advance_frame` and in the solver alone, and the host's substep choice and diagnostics, ms.
+struct Profile {
+    stages: Stages,
+    frame_ms: f64,
+    solver_ms: f64,
+    host: (f64, f64),
+}
+
 /// Substeps per frame in [`profile`].
 const PROFILED_SUBSTEPS: u32 = 30;
 
@@ -74,7 +83,7 @@ const PROFILED_SUBSTEPS: u32 = 30;
 /// the second frame's milliseconds through `advance_frame` and in the solver alone (upload,
 /// substeps, read back; the rest is the world's own frame work: energies, inverted cells),
 /// and each stage's microseconds per substep (timestamp queries).
-fn profile(make: impl Fn() -> World) -> Result<(Stages, f64, f64), String> {
+fn profile(make: impl Fn() -> World) -> Result<Profile, String> {
     let fixed = || {
         let mut w = make();
         w.settings.fixed_substeps = Some(PROFILED_SUBSTEPS);
@@ -89,6 +98,15 @@ fn profile(make: impl Fn() -> World) -> Result<(Stages, f64, f64), String> {
             .map_err(|e| e.to_string())?;
         frame_ms = start.elapsed().as_secs_f64() * 1e3;
     }
+    // The world's own frame work on the host, measured apart: the substep choice (the
+    // impact and collapse passes) and the diagnostics (energies, inverted cells, speed).
+    world.settings.fixed_substeps = None;
+    let start = Instant::now();
+    world.choose_substeps(1.0 / 24.0);
+    let choice_ms = start.elapsed().as_secs_f64() * 1e3;
+    let start = Instant::now();
+    world.diagnostics(2);
+    let host = (choice_ms, start.elapsed().as_secs_f64() * 1e3);
     let mut world = fixed();
     let model = world.device_model().map_err(|e| e.to_string())?;
     let mut solver = GpuSolver::new(&model).map_err(|e| e.to_string())?;
@@ -111,7 +129,12 @@ fn profile(make: impl Fn() -> World) -> Result<(Stages, f64, f64), String> {
         .into_iter()
         .map(|(name, s)| (name, s * 1e6))
         .collect();
-    Ok((stages, frame_ms, solver_ms))
+    Ok(Profile {
+        stages,
+        frame_ms,
+        solver_ms,
+        host,
+    })
 }
 
 /// The world on the GPU (setup seconds with it).
@@ -122,11 +145,17 @@ fn on_gpu(mut world: World) -> (World, f64) {
     (world, built.elapsed().as_secs_f64())
 }
 
+/// The live viewer's scene (module docs) on N³ nodes.
+fn live_world(n: u32) -> World {
+    let mut world = support::box_world(0.5, Rotation3::identity(), 0.0, n - 1, "jelly");
+    support::sweep_along_x(&mut world, (0.05, 1.0, 90.0), 0.2, (-0.6, 0.6), 1.2);
+    world
+}
+
 /// The live viewer's case (module docs): median and slowest ms per 1/60 s frame, substeps
 /// in the last frame, most inverted cells in a frame.
 fn live(n: u32, frames: usize, gpu: bool) -> (f64, f64, u32, usize) {
-    let mut world = support::box_world(0.5, Rotation3::identity(), 0.0, n - 1, "jelly");
-    support::sweep_along_x(&mut world, (0.05, 1.0, 90.0), 0.2, (-0.6, 0.6), 1.2);
+    let mut world = live_world(n);
     if gpu {
         world = on_gpu(world).0;
     }
@@ -199,21 +228,7 @@ fn main() {
         }
         println!();
         if profiled {
-            match profile(make) {
-                Ok((stages, frame_ms, solver_ms)) => {
-                    println!(
-                        "  a frame of {PROFILED_SUBSTEPS} substeps: {frame_ms:.1} ms, of which \
-                         {solver_ms:.1} ms in the solver (upload, substeps, read back)"
-                    );
-                    let total: f64 = stages.iter().map(|s| s.1).sum();
-                    print!("  µs per substep, {total:.1} in all:");
-                    for (name, us) in stages {
-                        print!(" {name} {us:.1};");
-                    }
-                    println!();
-                }
-                Err(e) => println!("  no profile: {e}"),
-            }
+            print_profile(make);
         }
     }
     for n in live_sizes {
@@ -228,5 +243,33 @@ fn main() {
             print!("; CPU median {median:.1} ms, slowest {slowest:.1} ms, {inverted} inverted");
         }
         println!(" (60 fps: 16.7 ms)");
+        if profiled {
+            print_profile(|| live_world(n));
+        }
+    }
+}
+
+/// [`profile`]'s figures, or why there are none.
+fn print_profile(make: impl Fn() -> World) {
+    match profile(make) {
+        Ok(Profile {
+            stages,
+            frame_ms,
+            solver_ms,
+            host: (choice_ms, diagnostics_ms),
+        }) => {
+            println!(
+                "  a frame of {PROFILED_SUBSTEPS} substeps: {frame_ms:.1} ms, of which \
+                 {solver_ms:.1} ms in the solver (upload, substeps, read back); on the host, \
+                 the substep choice {choice_ms:.1} ms, the diagnostics {diagnostics_ms:.1} ms"
+            );
+            let total: f64 = stages.iter().map(|s| s.1).sum();
+            print!("  µs per substep, {total:.1} in all:");
+            for (name, us) in stages {
+                print!(" {name} {us:.1};");
+            }
+            println!();
+        }
+        Err(e) => println!("  no profile: {e}"),
     }
 }
