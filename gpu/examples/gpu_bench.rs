@@ -8,10 +8,11 @@
 //! and read back; drawing not counted): median and slowest milliseconds per frame against
 //! the 16.7 ms of 60 fps.
 //!
-//! `--profile` adds, per size, each stage's GPU time per substep (timestamp queries).
+//! `--profile` adds, per size, each stage's GPU time per substep (timestamp queries), and the
+//! host's share of a frame. `--trace` prints each frame's substeps, inverted cells and time.
 //!
 //! `cargo run --release -p springbake-gpu --example gpu_bench -- [N ...] [--frames F]
-//! [--cpu-max N] [--live N] [--profile]` (defaults: 16 32 64, 10 frames, CPU up to 32, no
+//! [--cpu-max N] [--live N] [--profile] [--trace]` (defaults: 16 32 64, 10 frames, CPU up to 32, no
 //! live case, no profile).
 #![allow(clippy::unwrap_used)]
 
@@ -33,14 +34,24 @@ struct Run {
     inverted: Option<(usize, usize)>,
 }
 
-/// `frames` frames of `world`, timed.
-fn run(mut world: World, frames: usize) -> Run {
+/// `frames` frames of `world`, timed; with `trace`, a line per frame (its substeps, inverted
+/// cells and milliseconds) under `label`.
+fn run(mut world: World, frames: usize, trace: Option<&str>) -> Run {
     let nodes = world.nodes.len() as f64;
     let (mut substeps, mut last_substeps) = (0u64, 0);
     let mut inverted: Option<(usize, usize)> = None;
     let start = Instant::now();
     for f in 1..=frames {
+        let frame_start = Instant::now();
         let d = world.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        if let Some(label) = trace {
+            println!(
+                "  {label} frame {f}: {} substeps, {} inverted, {:.1} ms",
+                d.substeps,
+                d.inverted_cells,
+                frame_start.elapsed().as_secs_f64() * 1e3
+            );
+        }
         if d.inverted_cells > 0 {
             let (most, first) = inverted.unwrap_or((0, f));
             inverted = Some((most.max(d.inverted_cells), first));
@@ -98,8 +109,8 @@ fn profile(make: impl Fn() -> World) -> Result<Profile, String> {
             .map_err(|e| e.to_string())?;
         frame_ms = start.elapsed().as_secs_f64() * 1e3;
     }
-    // The world's own frame work on the host, measured apart: the substep choice (the
-    // impact and collapse passes) and the diagnostics (energies, inverted cells, speed).
+    // The substep choice measured apart (held at a fixed count the frames above skip it), and
+    // the diagnostics as the CPU measures them (a frame on the device takes the census's).
     world.settings.fixed_substeps = None;
     let start = Instant::now();
     world.choose_substeps(1.0 / 24.0);
@@ -179,6 +190,7 @@ fn main() {
     let (mut frames, mut cpu_max) = (10usize, 32u32);
     let mut live_sizes = Vec::new();
     let mut profiled = false;
+    let mut traced = false;
     let mut k = 0;
     while k < args.len() {
         match args[k].as_str() {
@@ -187,6 +199,7 @@ fn main() {
                 k += 1;
             }
             "--profile" => profiled = true,
+            "--trace" => traced = true,
             "--live" => {
                 live_sizes.push(args[k + 1].parse::<u32>().unwrap());
                 k += 1;
@@ -207,7 +220,7 @@ fn main() {
     for n in sizes {
         let make = || support::box_world(1.0, Rotation3::identity(), 1.0, n - 1, "rubber");
         let (gpu, setup) = on_gpu(make());
-        let r = run(gpu, frames);
+        let r = run(gpu, frames, traced.then_some("GPU"));
         print!(
             "{n}³ = {} nodes, {} substeps/frame: GPU {:.2} M node-steps/s, {:.1} ms/frame \
              (setup {setup:.2} s){}",
@@ -218,7 +231,7 @@ fn main() {
             inverted_note(&r)
         );
         if n <= cpu_max {
-            let r = run(make(), frames);
+            let r = run(make(), frames, traced.then_some("CPU"));
             print!(
                 "; CPU {:.2} M node-steps/s, {:.1} ms/frame{}",
                 r.node_steps_per_second * 1e-6,
@@ -260,8 +273,10 @@ fn print_profile(make: impl Fn() -> World) {
         }) => {
             println!(
                 "  a frame of {PROFILED_SUBSTEPS} substeps: {frame_ms:.1} ms, of which \
-                 {solver_ms:.1} ms in the solver (upload, substeps, read back); on the host, \
-                 the substep choice {choice_ms:.1} ms, the diagnostics {diagnostics_ms:.1} ms"
+                 {solver_ms:.1} ms in the solver (upload, substeps, census, read back) and \
+                 {:.1} ms the world's own on the host; a substep choice {choice_ms:.1} ms; \
+                 the CPU's diagnostics of that state (no census) {diagnostics_ms:.1} ms",
+                frame_ms - solver_ms
             );
             let total: f64 = stages.iter().map(|s| s.1).sum();
             print!("  µs per substep, {total:.1} in all:");

@@ -27,7 +27,8 @@ pub struct Params {
     pub capsule_count: u32,
     pub point_count: u32,
     pub push_chunks: u32,
-    pub pad: u32,
+    /// Cells in all, for the frame's census.
+    pub cell_count: u32,
     pub planes: [[f32; 4]; MAX_PLANES],
 }
 

@@ -15,7 +15,9 @@ use bytemuck::cast_slice as bytes;
 use layout::{Body, Packed, Params, MAX_PLANES, PUSH_CHUNK, SIXTEEN_FLOATS, WORKGROUP};
 use rayon::prelude::*;
 use springbake_core::nalgebra::Vector3;
-use springbake_core::solver::device::{DeviceFrame, DeviceModel, DeviceSolver, DeviceTotals};
+use springbake_core::solver::device::{
+    DeviceCensus, DeviceFrame, DeviceModel, DeviceSolver, DeviceTotals,
+};
 use springbake_core::solver::Capsule;
 use wgpu::util::DeviceExt;
 
@@ -97,6 +99,7 @@ struct Pipelines {
     damp_apply: wgpu::ComputePipeline,
     push_sums: wgpu::ComputePipeline,
     push_finish: wgpu::ComputePipeline,
+    cell_census: wgpu::ComputePipeline,
 }
 
 /// The XPBD substep on a GPU (module docs).
@@ -131,7 +134,7 @@ pub struct GpuSolver {
     errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
-const STORAGE_BINDINGS: [(u32, bool); 18] = [
+const STORAGE_BINDINGS: [(u32, bool); 19] = [
     (1, false),
     (2, false),
     (3, false),
@@ -150,6 +153,7 @@ const STORAGE_BINDINGS: [(u32, bool); 18] = [
     (16, true),
     (17, true),
     (18, false),
+    (19, false),
 ];
 
 fn storage(device: &wgpu::Device, label: &str, contents: &[u8]) -> wgpu::Buffer {
@@ -255,7 +259,7 @@ impl GpuSolver {
             capsule_count: 0,
             point_count: model.point_nodes.len() as u32,
             push_chunks: 0,
-            pad: 0,
+            cell_count: model.cells.len() as u32,
             planes: [[0.0; 4]; MAX_PLANES],
         };
         for (k, (n, offset)) in model.planes.iter().enumerate() {
@@ -278,7 +282,10 @@ impl GpuSolver {
         let push_slots = node_count + model.point_nodes.len() as u32;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: 3 * 16 * u64::from(node_count.max(1)) + 16 + 16 * u64::from(MAX_SUBSTEPS),
+            size: 3 * 16 * u64::from(node_count.max(1))
+                + 16
+                + 16 * u64::from(MAX_SUBSTEPS)
+                + 16 * u64::from(groups(model.cells.len() as u32)),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -473,6 +480,7 @@ impl DeviceSolver for GpuSolver {
             totals.max_depth = totals.max_depth.max(part.max_depth);
             totals.capsule_force += part.capsule_force;
             totals.capsule_work += part.capsule_work;
+            totals.census = part.census;
             done += batch;
         }
         Ok(totals)
@@ -529,6 +537,23 @@ impl GpuSolver {
                 }
             }
         }
+        let census_groups = groups(self.params.cell_count);
+        if census_groups > 0 {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("census"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &self.state, &[]);
+            pass.set_bind_group(2, &self.steps, &[0]);
+            self.record(
+                &mut pass,
+                &[Dispatch {
+                    pipeline: &self.pipelines.cell_census,
+                    span: None,
+                    groups: census_groups,
+                }],
+            );
+        }
         let n = u64::from(self.params.node_count);
         encoder.copy_buffer_to_buffer(&self.buffers.prev, 0, &self.staging, 0, 16 * n);
         encoder.copy_buffer_to_buffer(&self.buffers.x, 0, &self.staging, 16 * n, 16 * n);
@@ -544,6 +569,17 @@ impl GpuSolver {
                 &self.staging,
                 to,
                 totals_bytes,
+            );
+        }
+        let census_at = 48 * n + 16 + 16 * u64::from(MAX_SUBSTEPS);
+        let census_bytes = 16 * u64::from(census_groups);
+        if census_bytes > 0 {
+            encoder.copy_buffer_to_buffer(
+                &self.buffers.census,
+                0,
+                &self.staging,
+                census_at,
+                census_bytes,
             );
         }
         self.queue.submit([encoder.finish()]);
@@ -567,6 +603,13 @@ impl GpuSolver {
                 max_depth: f64::from(f32::from_bits(u32::from_le_bytes(bits))),
                 ..DeviceTotals::default()
             };
+            if census_bytes > 0 {
+                let range = census_at as usize..(census_at + census_bytes) as usize;
+                totals.census = Some(census(
+                    bytemuck::cast_slice(&view[range]),
+                    self.params.cell_count,
+                ));
+            }
             if self.params.capsule_count > 0 {
                 let sums: &[[f32; 4]] =
                     bytemuck::cast_slice(&view[at + 16..at + 16 + 16 * substeps as usize]);
@@ -581,6 +624,22 @@ impl GpuSolver {
         self.failure()?;
         Ok(depth)
     }
+}
+
+/// The frame's census from the workgroups' (energy, least ratio, inverted, 0), added in
+/// workgroup order in f64.
+fn census(groups: &[[f32; 4]], cells: u32) -> DeviceCensus {
+    let mut c = DeviceCensus {
+        cells: cells as usize,
+        most_collapsed: f64::INFINITY,
+        ..DeviceCensus::default()
+    };
+    for g in groups {
+        c.elastic_energy += f64::from(g[0]);
+        c.most_collapsed = c.most_collapsed.min(f64::from(g[1]));
+        c.inverted_cells += g[2] as usize;
+    }
+    c
 }
 
 struct Buffers {
@@ -602,6 +661,7 @@ struct Buffers {
     base: wgpu::Buffer,
     capsules: wgpu::Buffer,
     push: wgpu::Buffer,
+    census: wgpu::Buffer,
 }
 
 impl Buffers {
@@ -635,6 +695,11 @@ impl Buffers {
             base: storage(device, "base", bytes(&p.x)),
             capsules: storage(device, "capsules", &zeros(64)),
             push: storage(device, "push", &zeros(16 * push_slots)),
+            census: storage(
+                device,
+                "census",
+                &zeros(16 * groups(p.cells.len() as u32) as usize),
+            ),
         }
     }
 
@@ -664,6 +729,7 @@ impl Buffers {
             &self.base,
             &self.capsules,
             &self.push,
+            &self.census,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = order
             .iter()
@@ -787,5 +853,6 @@ fn build_pipelines(
         damp_apply: make("damp_apply"),
         push_sums: make("push_sums"),
         push_finish: make("push_finish"),
+        cell_census: make("cell_census"),
     }
 }

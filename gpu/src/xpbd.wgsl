@@ -25,7 +25,7 @@ struct Params {
     point_count: u32,
     // Chunks of PUSH_CHUNK slots over `push`'s node and point slots.
     push_chunks: u32,
-    pad: u32,
+    cell_count: u32,
     planes: array<vec4<f32>, 8>,
 }
 
@@ -135,6 +135,9 @@ struct BodyOut {
 // The capsules' push per node, then per point (force xyz, N; work w, J); then the chunks'
 // sums; then each substep's total.
 @group(0) @binding(18) var<storage, read_write> push: array<vec4<f32>>;
+// The frame's census, per workgroup of cells: (elastic energy J, least corner volume ratio,
+// inverted cells, 0).
+@group(0) @binding(19) var<storage, read_write> census: array<vec4<f32>>;
 @group(1) @binding(0) var<uniform> span: Span;
 @group(2) @binding(0) var<uniform> substep: Step;
 
@@ -347,6 +350,98 @@ fn solve_cells(@builtin(global_invocation_id) id: vec3<u32>) {
         barrier(c, inv_h);
     }
     store_cell(cell);
+}
+
+// ---- The frame's census, after its last substep (measures.rs and cells::energy) -----------
+
+var<workgroup> census_scratch: array<vec4<f32>, 64>;
+
+// Corner c's volume ratio det F.
+fn corner_ratio(c: u32, inv_h: f32) -> f32 {
+    let s = signs(c, inv_h);
+    let f0 = (lx[c ^ 1u] - lx[c]) * s.x;
+    let f1 = (lx[c ^ 2u] - lx[c]) * s.y;
+    let f2 = (lx[c ^ 4u] - lx[c]) * s.z;
+    return dot(f0, cross(f1, f2));
+}
+
+// Σ r_i r_j E_ij² of corner c's Green strain (the shear constraint's value, squared).
+fn strain_squared(c: u32, inv_h: f32, r: vec3<f32>) -> f32 {
+    let s = signs(c, inv_h);
+    let f = array<vec3<f32>, 3>(
+        (lx[c ^ 1u] - lx[c]) * s.x,
+        (lx[c ^ 2u] - lx[c]) * s.y,
+        (lx[c ^ 4u] - lx[c]) * s.z,
+    );
+    var sum = 0.0;
+    for (var j = 0u; j < 3u; j++) {
+        for (var i = 0u; i < 3u; i++) {
+            let e = 0.5 * (dot(f[i], f[j]) - select(0.0, 1.0, i == j));
+            sum += e * e * r[i] * r[j];
+        }
+    }
+    return sum;
+}
+
+fn cube_volume() -> f32 {
+    var six_v = 0.0;
+    for (var t = 0u; t < 6u; t++) {
+        let k = TETS[t];
+        let e1 = lx[k.y] - lx[k.x];
+        six_v += dot(e1, cross(lx[k.z] - lx[k.x], lx[k.w] - lx[k.x]));
+    }
+    return six_v / 6.0;
+}
+
+// Each cell's energy (½ C² / compliance for its volume and four shear corners), its least
+// corner ratio and whether that is 0 or less; a workgroup's sum, minimum and count by a
+// fixed tree.
+@compute @workgroup_size(64)
+fn cell_census(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(workgroup_id) wg: vec3<u32>,
+) {
+    var own = vec4<f32>(0.0, 3.0e38, 0.0, 0.0);
+    if id.x < params.cell_count {
+        let cell = cells[id.x];
+        load_cell(cell);
+        let inv_h = cell.inv_h;
+        var energy = 0.0;
+        if cell.hydro > 0.0 {
+            let c_h = cube_volume() * inv_h * inv_h * inv_h - 1.0;
+            energy += 0.5 * c_h * c_h / cell.hydro;
+        }
+        let r = cell.axis.xyz;
+        var shear = 0.0;
+        // The parity's corners: 0, 3, 5, 6 or 1, 2, 4, 7.
+        var evens = array<u32, 4>(0u, 3u, 5u, 6u);
+        for (var q = 0u; q < 4u; q++) {
+            let even = evens[q];
+            shear += strain_squared(select(even, 7u - even, cell.odd != 0u), inv_h, r);
+        }
+        if cell.dev > 0.0 {
+            energy += 0.5 * shear / cell.dev;
+        }
+        var least = 3.0e38;
+        for (var c = 0u; c < 8u; c++) {
+            least = min(least, corner_ratio(c, inv_h));
+        }
+        own = vec4<f32>(energy, least, select(0.0, 1.0, least <= 0.0), 0.0);
+    }
+    census_scratch[lid.x] = own;
+    workgroupBarrier();
+    for (var half = WG / 2u; half > 0u; half = half / 2u) {
+        if lid.x < half {
+            let a = census_scratch[lid.x];
+            let b = census_scratch[lid.x + half];
+            census_scratch[lid.x] = vec4<f32>(a.x + b.x, min(a.y, b.y), a.z + b.z, 0.0);
+        }
+        workgroupBarrier();
+    }
+    if lid.x == 0u {
+        census[wg.x] = census_scratch[0];
+    }
 }
 
 // ---- Stage 3c and 5b: per-body rigid motion over fixed chunks ------------------------------

@@ -106,6 +106,23 @@ pub struct DeviceTotals {
     pub capsule_force: Vector3<f64>,
     /// The capsules' work on the bodies, J.
     pub capsule_work: f64,
+    /// The cells measured at the frame's end, where the device measures them.
+    pub census: Option<DeviceCensus>,
+}
+
+/// The cells at a frame's end as a device measured them (in its precision), so that the
+/// world need not pass over every cell again on the host for the frame's diagnostics and
+/// the next frame's substeps (at 128³ three passes, about half a frame's host work).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DeviceCensus {
+    /// How many cells were measured (all of the model's).
+    pub cells: usize,
+    /// Their elastic energy, J ([`super::xpbd`]'s cells: volume and shear terms).
+    pub elastic_energy: f64,
+    /// Cells with a corner of volume ratio 0 or less.
+    pub inverted_cells: usize,
+    /// The smallest corner volume ratio `det F` of any cell.
+    pub most_collapsed: f64,
 }
 
 /// A solver that runs a [`DeviceModel`]'s substeps elsewhere.
@@ -123,6 +140,10 @@ pub(crate) struct DeviceSlot {
     solver: Option<Box<dyn DeviceSolver>>,
     /// Node count the device was built for.
     nodes: usize,
+    /// The last frame's census, and the fresh one until the frame's end takes it with the
+    /// key of the positions it measured (time and fingerprint bits).
+    census: Option<((u64, u64), DeviceCensus)>,
+    fresh: Option<DeviceCensus>,
 }
 
 impl Clone for DeviceSlot {
@@ -246,12 +267,29 @@ impl World {
         self.device = DeviceSlot {
             solver: Some(solver),
             nodes: self.nodes.len(),
+            census: None,
+            fresh: None,
         };
     }
 
     /// The adapter of the attached device (`None`: the world steps on the CPU).
     pub fn device_adapter(&self) -> Option<&str> {
         self.device.solver.as_ref().map(|s| s.adapter())
+    }
+
+    /// The frame's fresh census, filed under `key` (the positions it measured): the frame's
+    /// end takes it once.
+    pub(crate) fn file_device_census(&mut self, key: (u64, u64)) -> Option<DeviceCensus> {
+        let census = self.device.fresh.take()?;
+        self.device.census = Some((key, census));
+        Some(census)
+    }
+
+    /// The device's census of the positions as they are now, if it measured them (the
+    /// fingerprint is taken only when there is a census to check).
+    pub(crate) fn device_census_now(&self) -> Option<DeviceCensus> {
+        let (key, census) = self.device.census?;
+        (key == self.position_key()).then_some(census)
     }
 
     /// Whether a device steps this world's frames.
@@ -295,6 +333,9 @@ impl World {
         for _ in 0..substeps {
             self.time += dt;
         }
+        let cells: usize = self.bodies.iter().map(|b| b.cells.len()).sum();
+        self.device.fresh = totals.census.filter(|c| c.cells == cells);
+        self.device.census = None;
         acc.max_depth = acc.max_depth.max(totals.max_depth);
         acc.steps += substeps;
         acc.manipulator_work += totals.capsule_work;

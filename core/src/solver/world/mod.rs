@@ -361,8 +361,13 @@ impl World {
             return Err(SimulationError::Field(message));
         }
         self.check_finite(frame)?;
-        let energies = self.frame_energies();
-        let mut diag = self.diagnostics_from(frame, energies);
+        let key = self.position_key();
+        let census = self.file_device_census(key);
+        if let Some(c) = census {
+            self.elastic_memo = Some((key, c.elastic_energy));
+        }
+        let energies = self.frame_energies_at(key);
+        let mut diag = self.diagnostics_from(frame, energies, census.map(|c| c.inverted_cells));
         diag.substeps = choice.substeps;
         diag.dispersion_corrections = acc.corrections;
         diag.dispersion_iterations = acc.iterations;

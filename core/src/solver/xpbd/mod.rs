@@ -453,9 +453,10 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
 /// The substeps a frame takes instead of `n` while a cell is near collapse (the [`crowding`]
 /// module), at most `cap`; `None` when that is not more than `n`.
 fn crowded_substeps(world: &mut World, n: f64, cap: f64) -> Option<f64> {
+    let measured = world.device_census_now().map(|c| c.most_collapsed);
     let (time, x) = (world.time, &world.nodes.position);
     let model = world.xpbd.as_mut()?;
-    let ratio = model.cells.most_collapsed(x);
+    let ratio = measured.unwrap_or_else(|| model.cells.most_collapsed(x));
     let max_level = (cap / n).log2().ceil().max(0.0) as u32;
     let level = model.crowding.update(time, ratio, max_level);
     let crowded = (n * f64::from(1u32 << level)).min(cap);
