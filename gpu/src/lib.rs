@@ -130,6 +130,9 @@ pub struct GpuSolver {
     has_points: bool,
     /// Each node's inverse mass: `base`'s `w`.
     inv_mass: Vec<f32>,
+    /// The frame's positions and velocities in f32 on their way up, kept between frames (a
+    /// fresh 64 MB a frame at 128³ cost the host its pages' zeroing every frame).
+    upload: (Vec<[f32; 4]>, Vec<[f32; 4]>),
     /// Errors wgpu reported outside a call's result (its default is to panic).
     errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
@@ -316,6 +319,7 @@ impl GpuSolver {
             staging,
             has_points: !model.point_order.is_empty(),
             inv_mass: packed.nodes.iter().map(|n| n.inv_mass).collect(),
+            upload: (Vec::new(), Vec::new()),
         })
     }
 
@@ -500,13 +504,18 @@ impl GpuSolver {
     ) -> Result<DeviceTotals, String> {
         self.upload_capsules(capsules, capsule_count);
         // On the pool: at 2 M nodes each of these passes is tens of milliseconds on one core.
-        let f4 = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        let base: Vec<[f32; 4]> = (position.par_iter().zip(&self.inv_mass[..]))
-            .map(|(v, &w)| [v.x as f32, v.y as f32, v.z as f32, w])
-            .collect();
-        let vel: Vec<[f32; 4]> = velocity.par_iter().map(f4).collect();
-        self.queue.write_buffer(&self.buffers.base, 0, bytes(&base));
-        self.queue.write_buffer(&self.buffers.v, 0, bytes(&vel));
+        let (base, vel) = &mut self.upload;
+        base.resize(position.len(), [0.0; 4]);
+        vel.resize(velocity.len(), [0.0; 4]);
+        (base
+            .par_iter_mut()
+            .zip(position.par_iter())
+            .zip(&self.inv_mass[..]))
+        .for_each(|((b, v), &w)| *b = [v.x as f32, v.y as f32, v.z as f32, w]);
+        (vel.par_iter_mut().zip(velocity.par_iter()))
+            .for_each(|(b, v)| *b = [v.x as f32, v.y as f32, v.z as f32, 0.0]);
+        self.queue.write_buffer(&self.buffers.base, 0, bytes(base));
+        self.queue.write_buffer(&self.buffers.v, 0, bytes(vel));
         self.params.dt = dt as f32;
         self.params.inv_dt = (1.0 / dt) as f32;
         self.params.inv_dt2 = (1.0 / (dt * dt)) as f32;
