@@ -3,7 +3,9 @@
 //! it hands a device the flat inputs of the small-step XPBD substep once ([`DeviceModel`],
 //! from [`World::device_model`]); then, for each output frame, it chooses the substeps as on
 //! the CPU, the device runs them ([`DeviceSolver::advance`]) and hands positions and velocities
-//! back, and the world computes the frame's diagnostics from them as it always does.
+//! back, and the world computes the frame's diagnostics from them as it always does, except
+//! what a device measured of its cells at the frame's end ([`DeviceCensus`]: their energy,
+//! inverted cells and least corner ratio), which spares the host a pass over every cell.
 //!
 //! A device runs the substep of [`super::xpbd`] stage for stage, in f32: prediction with
 //! gravity, static pins, the lattice cells colour by colour, the torque cancellation, contact
