@@ -8,7 +8,8 @@
 #   scripts/bench-gpu.sh --live 32       the live viewer's case: a 32³ jelly cube swept by
 #                                        the manipulator, ms per 1/60 s frame
 # Needs a Vulkan (Metal, DX12) driver: NVIDIA's driver brings its own ICD; without a GPU,
-# scripts/setup-test-env.sh installs Mesa's lavapipe.
+# scripts/setup-test-env.sh installs Mesa's lavapipe. It builds with cargo: for the device
+# machine, which has none, scripts/device-pack.sh packs gpu_bench and what it needs instead.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 sizes=()
