@@ -74,6 +74,18 @@ fn the_gpu_bakes_the_cube_drop_as_the_cpu_does_and_says_so() {
             "frame {}: {ga} against {gb} J",
             a["frame"]
         );
+        // The cells' elastic energy, the device's from its census: as the CPU reads it (the
+        // elastic solve's, before the contacts; read after them, the cube resting on its
+        // display-surface contact showed 3–4 times the CPU's).
+        let (ea, eb) = (
+            a["elastic_energy"].as_f64().unwrap(),
+            b["elastic_energy"].as_f64().unwrap(),
+        );
+        assert!(
+            (ea - eb).abs() <= 0.02 * eb.abs() + 1e-3,
+            "frame {}: elastic {ea} against {eb} J",
+            a["frame"]
+        );
     }
 }
 

@@ -288,7 +288,7 @@ impl GpuSolver {
             size: 3 * 16 * u64::from(node_count.max(1))
                 + 16
                 + 16 * u64::from(MAX_SUBSTEPS)
-                + 16 * u64::from(groups(model.cells.len() as u32)),
+                + 2 * 16 * u64::from(groups(model.cells.len() as u32)),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -533,6 +533,18 @@ impl GpuSolver {
         encoder.clear_buffer(&self.buffers.x, 0, None);
         encoder.clear_buffer(&self.buffers.prev, 0, None);
         let stages = self.stages();
+        // The census's energy half is taken in the last substep before its contact stages
+        // (the cells as the elastic solve left them, as the CPU's `Model::elastic_energy`
+        // reads them); the other half (inverted cells, least ratio) after the frame.
+        let census_groups = groups(self.params.cell_count);
+        let measure = || Dispatch {
+            pipeline: &self.pipelines.cell_census,
+            span: None,
+            groups: census_groups,
+        };
+        let before_contact = (stages.iter())
+            .position(|s| s.0.starts_with("contact"))
+            .unwrap_or(stages.len());
         for first in (0..substeps).step_by(SUBSTEPS_PER_PASS as usize) {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("substeps"),
@@ -541,27 +553,28 @@ impl GpuSolver {
             pass.set_bind_group(0, &self.state, &[]);
             for k in first..(first + SUBSTEPS_PER_PASS).min(substeps) {
                 pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
-                for stage in &stages {
+                for (at, stage) in stages.iter().enumerate() {
+                    if k + 1 == substeps && at == before_contact {
+                        pass.set_bind_group(2, &self.steps, &[0]);
+                        self.record(&mut pass, &[measure()]);
+                        pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
+                    }
                     self.record(&mut pass, &stage.1);
+                }
+                if k + 1 == substeps && before_contact == stages.len() {
+                    pass.set_bind_group(2, &self.steps, &[0]);
+                    self.record(&mut pass, &[measure()]);
                 }
             }
         }
-        let census_groups = groups(self.params.cell_count);
         if census_groups > 0 {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("census"),
                 timestamp_writes: None,
             });
             pass.set_bind_group(0, &self.state, &[]);
-            pass.set_bind_group(2, &self.steps, &[0]);
-            self.record(
-                &mut pass,
-                &[Dispatch {
-                    pipeline: &self.pipelines.cell_census,
-                    span: None,
-                    groups: census_groups,
-                }],
-            );
+            pass.set_bind_group(2, &self.steps, &[self.step_align]);
+            self.record(&mut pass, &[measure()]);
         }
         let n = u64::from(self.params.node_count);
         encoder.copy_buffer_to_buffer(&self.buffers.prev, 0, &self.staging, 0, 16 * n);
@@ -581,7 +594,7 @@ impl GpuSolver {
             );
         }
         let census_at = 48 * n + 16 + 16 * u64::from(MAX_SUBSTEPS);
-        let census_bytes = 16 * u64::from(census_groups);
+        let census_bytes = 2 * 16 * u64::from(census_groups);
         if census_bytes > 0 {
             encoder.copy_buffer_to_buffer(
                 &self.buffers.census,
@@ -635,16 +648,20 @@ impl GpuSolver {
     }
 }
 
-/// The frame's census from the workgroups' (energy, least ratio, inverted, 0), added in
-/// workgroup order in f64.
-fn census(groups: &[[f32; 4]], cells: u32) -> DeviceCensus {
+/// The frame's census from its two halves of workgroups' (energy, least ratio, inverted, 0):
+/// the energy from the first (taken before the last substep's contacts), the rest from the
+/// second (after the frame), each added in workgroup order in f64.
+fn census(halves: &[[f32; 4]], cells: u32) -> DeviceCensus {
+    let (relaxed, after) = halves.split_at(halves.len() / 2);
     let mut c = DeviceCensus {
         cells: cells as usize,
         most_collapsed: f64::INFINITY,
         ..DeviceCensus::default()
     };
-    for g in groups {
+    for g in relaxed {
         c.elastic_energy += f64::from(g[0]);
+    }
+    for g in after {
         c.most_collapsed = c.most_collapsed.min(f64::from(g[1]));
         c.inverted_cells += g[2] as usize;
     }
@@ -707,7 +724,7 @@ impl Buffers {
             census: storage(
                 device,
                 "census",
-                &zeros(16 * groups(p.cells.len() as u32) as usize),
+                &zeros(2 * 16 * groups(p.cells.len() as u32) as usize),
             ),
         }
     }

@@ -136,7 +136,8 @@ struct BodyOut {
 // sums; then each substep's total.
 @group(0) @binding(18) var<storage, read_write> push: array<vec4<f32>>;
 // The frame's census, per workgroup of cells: (elastic energy J, least corner volume ratio,
-// inverted cells, 0).
+// inverted cells, 0); two halves, the one a census dispatch writes chosen by its bind group 2
+// index (0: in the last substep before the contacts, 1: after the frame).
 @group(0) @binding(19) var<storage, read_write> census: array<vec4<f32>>;
 @group(1) @binding(0) var<uniform> span: Span;
 @group(2) @binding(0) var<uniform> substep: Step;
@@ -401,6 +402,7 @@ fn cell_census(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) count: vec3<u32>,
 ) {
     var own = vec4<f32>(0.0, 3.0e38, 0.0, 0.0);
     if id.x < params.cell_count {
@@ -440,7 +442,7 @@ fn cell_census(
         workgroupBarrier();
     }
     if lid.x == 0u {
-        census[wg.x] = census_scratch[0];
+        census[substep.index * count.x + wg.x] = census_scratch[0];
     }
 }
 

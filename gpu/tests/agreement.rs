@@ -124,30 +124,37 @@ fn a_jelly_block_swept_by_the_manipulator_moves_as_on_the_cpu() {
     assert!(x > 0.05, "centre x {x}");
 }
 
-/// The frame's diagnostics of a GPU world come from the device's census of its cells (their
-/// elastic energy and inverted cells, in f32): the CPU's measure of the same positions (a
-/// clone steps and measures on the CPU) agrees, frame by frame, through a push that
-/// squeezes the cells. (The census's least corner ratio feeds the next frame's substeps:
-/// the sweep above keeps the CPU's positions only while it gives the CPU's counts.)
+/// The frame's diagnostics of a GPU world come from the device's census of its cells: their
+/// elastic energy as the last substep's elastic solve left them (before its contacts, as the
+/// CPU reads it) and their inverted cells after the frame. The CPU world's own energy agrees
+/// frame by frame through a push that squeezes the cells (measured on lavapipe: within 1.2 %;
+/// the CPU's reading keeps the barriers' corrections after the contacts, the device's is
+/// taken before them; read after the contacts, as before the census, the device's was 29 %
+/// above), and a clone's count of inverted cells on the same positions. (The
+/// census's least corner ratio feeds the next frame's substeps: the sweep above keeps the
+/// CPU's positions only while it gives the CPU's counts.)
 #[test]
 fn the_devices_census_of_the_cells_is_the_cpus_measure() {
-    let mut gpu = box_world(0.3, Rotation3::identity(), 0.0, 6, "jelly");
-    support::sweep_along_x(&mut gpu, (0.04, 0.6, 0.0), 0.12, (-0.45, 0.45), 0.6);
-    let mut gpu = on_gpu(gpu);
+    let make = || {
+        let mut w = box_world(0.3, Rotation3::identity(), 0.0, 6, "jelly");
+        support::sweep_along_x(&mut w, (0.04, 0.6, 0.0), 0.12, (-0.45, 0.45), 0.6);
+        w
+    };
+    let (mut cpu, mut gpu) = (make(), on_gpu(make()));
     let (mut least, mut most) = (f64::INFINITY, 0.0f64);
     for f in 1..=24 {
         let on_device = gpu.advance_frame(FRAME, f, &|| false).unwrap();
-        let on_cpu = gpu.clone().diagnostics(f);
+        let on_cpu = cpu.advance_frame(FRAME, f, &|| false).unwrap();
         let (a, b) = (on_device.elastic_energy, on_cpu.elastic_energy);
         assert!(
-            (a - b).abs() <= 1e-5 * b.abs(),
+            (a - b).abs() <= 2e-2 * b.abs(),
             "frame {f}: elastic energy {a} J on the device, {b} J on the CPU"
         );
-        assert_eq!(on_device.inverted_cells, on_cpu.inverted_cells, "frame {f}");
+        let counted = gpu.clone().inverted_cells();
+        assert_eq!(on_device.inverted_cells, counted, "frame {f}");
         (least, most) = (least.min(b), most.max(b));
     }
-    // The push strained the cells (the energy compared was not only the sag's; measured on
-    // lavapipe: 7.6 to 48 J, the two within 5e-7 of each other).
+    // The push strained the cells (the energy compared was not only the sag's).
     assert!(most > 2.0 * least, "elastic energy {least} to {most} J");
 }
 
