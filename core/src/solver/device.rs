@@ -108,22 +108,23 @@ pub struct DeviceTotals {
     pub capsule_force: Vector3<f64>,
     /// The capsules' work on the bodies, J.
     pub capsule_work: f64,
-    /// The cells measured at the frame's end, where the device measures them.
+    /// What the device measured of the cells (see [`DeviceCensus`]), where it measures them.
     pub census: Option<DeviceCensus>,
 }
 
-/// The cells at a frame's end as a device measured them (in its precision), so that the
-/// world need not pass over every cell again on the host for the frame's diagnostics and
-/// the next frame's substeps (at 128³ three passes, about half a frame's host work).
+/// The cells of a frame as a device measured them (in its precision), so that the world
+/// need not pass over every cell again on the host for the frame's diagnostics and the next
+/// frame's substeps (at 128³ three passes, about half a frame's host work).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DeviceCensus {
     /// How many cells were measured (all of the model's).
     pub cells: usize,
-    /// Their elastic energy, J ([`super::xpbd`]'s cells: volume and shear terms).
+    /// Their elastic energy, J ([`super::xpbd`]'s cells: volume and shear terms), as the last
+    /// substep's elastic solve left them: before its contacts, as the CPU reads it.
     pub elastic_energy: f64,
-    /// Cells with a corner of volume ratio 0 or less.
+    /// Cells with a corner of volume ratio 0 or less, at the frame's end.
     pub inverted_cells: usize,
-    /// The smallest corner volume ratio `det F` of any cell.
+    /// The smallest corner volume ratio `det F` of any cell, at the frame's end.
     pub most_collapsed: f64,
 }
 
