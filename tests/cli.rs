@@ -585,18 +585,12 @@ fn a_body_that_starts_through_the_floor_is_named_before_the_bake() {
              [[body]]\nsource = \"cube.obj\"\ncells = 4\noffset = [0.0, {offset}, 0.0]\n"
         )
     };
-    std::fs::write(dir.path().join("half.toml"), scene(0.0)).unwrap();
-    let o = support::springbake_in(dir.path(), &["bake", "half.toml", "--progress", "quiet"]);
-    let err = stderr(&o);
-    assert!(o.status.success(), "{err}");
+    let err = support::bake_scene(dir.path(), "half.toml", &scene(0.0));
     assert!(
         err.contains("body \"Cube\" starts 0.250 m through the floor"),
         "{err}"
     );
-    std::fs::write(dir.path().join("on.toml"), scene(0.25)).unwrap();
-    let o = support::springbake_in(dir.path(), &["bake", "on.toml", "--progress", "quiet"]);
-    let err = stderr(&o);
-    assert!(o.status.success(), "{err}");
+    let err = support::bake_scene(dir.path(), "on.toml", &scene(0.25));
     assert!(!err.contains("through the floor"), "{err}");
 }
 
@@ -614,10 +608,7 @@ fn folded_cells_are_warned_of_with_their_frames_and_the_substeps_to_try() {
              material = \"jelly\"\noffset = [0.0, 0.5, 0.0]\nvelocity = [0.0, -10.0, 0.0]\n"
         )
     };
-    std::fs::write(dir.path().join("few.toml"), scene("4")).unwrap();
-    let o = support::springbake_in(dir.path(), &["bake", "few.toml", "--progress", "quiet"]);
-    let err = stderr(&o);
-    assert!(o.status.success(), "{err}");
+    let err = support::bake_scene(dir.path(), "few.toml", &scene("4"));
     assert!(
         err.contains("lattice cells inverted during the bake (frame 2, 3"),
         "{err}"
@@ -628,10 +619,7 @@ fn folded_cells_are_warned_of_with_their_frames_and_the_substeps_to_try() {
         ),
         "{err}"
     );
-    std::fs::write(dir.path().join("auto.toml"), scene("\"auto\"")).unwrap();
-    let o = support::springbake_in(dir.path(), &["bake", "auto.toml", "--progress", "quiet"]);
-    let err = stderr(&o);
-    assert!(o.status.success(), "{err}");
+    let err = support::bake_scene(dir.path(), "auto.toml", &scene("\"auto\""));
     assert!(!err.contains("inverted"), "{err}");
 }
 

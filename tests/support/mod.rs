@@ -63,10 +63,13 @@ pub fn succeeded(out: &Output) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-/// Writes `scene` to `dir/file` and bakes it quietly; panics with the CLI's stderr if it fails.
-pub fn bake_scene(dir: &Path, file: &str, scene: &str) {
+/// Writes `scene` to `dir/file` and bakes it quietly; panics with the CLI's stderr if it
+/// fails, else returns that stderr (its notes and warnings).
+pub fn bake_scene(dir: &Path, file: &str, scene: &str) -> String {
     std::fs::write(dir.join(file), scene).expect("write the scene");
-    succeeded(&springbake_in(dir, &["bake", file, "--progress", "quiet"]));
+    let out = springbake_in(dir, &["bake", file, "--progress", "quiet"]);
+    succeeded(&out);
+    stderr(&out)
 }
 
 /// Bakes `input` in `dir` to `output` for `frames` frames, quietly; panics with the CLI's
