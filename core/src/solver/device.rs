@@ -143,10 +143,9 @@ pub(crate) struct DeviceSlot {
     solver: Option<Box<dyn DeviceSolver>>,
     /// Node count the device was built for.
     nodes: usize,
-    /// The last frame's census, and the fresh one until the frame's end takes it with the
-    /// key of the positions it measured (time and fingerprint bits).
+    /// The last frame's census, under the key of the positions it measured (time and
+    /// fingerprint bits).
     census: Option<((u64, u64), DeviceCensus)>,
-    fresh: Option<DeviceCensus>,
 }
 
 impl Clone for DeviceSlot {
@@ -271,7 +270,6 @@ impl World {
             solver: Some(solver),
             nodes: self.nodes.len(),
             census: None,
-            fresh: None,
         };
     }
 
@@ -280,12 +278,10 @@ impl World {
         self.device.solver.as_ref().map(|s| s.adapter())
     }
 
-    /// The frame's fresh census, filed under `key` (the positions it measured): the frame's
-    /// end takes it once.
-    pub(crate) fn file_device_census(&mut self, key: (u64, u64)) -> Option<DeviceCensus> {
-        let census = self.device.fresh.take()?;
-        self.device.census = Some((key, census));
-        Some(census)
+    /// File the frame's census under `key` (the positions it measured) for the next frame's
+    /// substeps.
+    pub(crate) fn file_device_census(&mut self, key: (u64, u64), census: Option<DeviceCensus>) {
+        self.device.census = census.map(|c| (key, c));
     }
 
     /// The device's census of the positions as they are now, if it measured them (the
@@ -300,13 +296,14 @@ impl World {
         self.device.solver.is_some()
     }
 
-    /// One output frame's substeps on the attached device, its totals added to `acc`.
+    /// One output frame's substeps on the attached device, its totals added to `acc`; what
+    /// the device measured of the cells, when it measured all of them.
     pub(crate) fn advance_on_device(
         &mut self,
         substeps: u32,
         dt: f64,
         acc: &mut FrameAccumulator,
-    ) -> Result<(), SimulationError> {
+    ) -> Result<Option<DeviceCensus>, SimulationError> {
         if self.device.nodes != self.nodes.len() {
             return Err(SimulationError::Device(
                 "the world's bodies changed after the device was attached".into(),
@@ -320,7 +317,7 @@ impl World {
             time += dt;
         }
         let Some(solver) = self.device.solver.as_mut() else {
-            return Ok(());
+            return Ok(None);
         };
         let nodes = &mut self.nodes;
         let totals = solver
@@ -336,8 +333,6 @@ impl World {
         for _ in 0..substeps {
             self.time += dt;
         }
-        let cells: usize = self.bodies.iter().map(|b| b.cells.len()).sum();
-        self.device.fresh = totals.census.filter(|c| c.cells == cells);
         self.device.census = None;
         acc.max_depth = acc.max_depth.max(totals.max_depth);
         acc.steps += substeps;
@@ -345,6 +340,7 @@ impl World {
         if !self.manipulators.is_empty() || !self.live_capsules.is_empty() {
             acc.reaction_sum -= totals.capsule_force;
         }
-        Ok(())
+        let cells: usize = self.bodies.iter().map(|b| b.cells.len()).sum();
+        Ok(totals.census.filter(|c| c.cells == cells))
     }
 }

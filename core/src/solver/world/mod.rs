@@ -344,15 +344,16 @@ impl World {
         let (kinetic, elastic, gravity) = self.frame_energies();
         super::fields::refresh(self, false);
         self.contact_log.begin_frame();
-        if self.on_device() {
-            self.advance_on_device(choice.substeps, choice.dt, &mut acc)?;
+        let census = if self.on_device() {
+            self.advance_on_device(choice.substeps, choice.dt, &mut acc)?
         } else {
             on_worker(self.parallel_size(), || {
                 for _ in 0..choice.substeps {
                     self.step_accumulate(choice.dt, &mut acc);
                 }
             });
-        }
+            None
+        };
         self.contact_log.end_frame();
         if cancelled() {
             return Err(SimulationError::Cancelled);
@@ -362,7 +363,7 @@ impl World {
         }
         self.check_finite(frame)?;
         let key = self.position_key();
-        let census = self.file_device_census(key);
+        self.file_device_census(key, census);
         if let Some(c) = census {
             self.elastic_memo = Some((key, c.elastic_energy));
         }
