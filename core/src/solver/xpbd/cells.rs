@@ -356,7 +356,7 @@ impl CellSet {
             let axis = &self.axis_root[range.clone()];
             if Some(colour) == self.serial_colour {
                 for j in 0..nodes.len() {
-                    let mut local = nodes[j].map(|n| x[n as usize]);
+                    let mut local = gather(&nodes[j], x);
                     let wl = nodes[j].map(|n| w[n as usize]);
                     let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
                     solve_cell(&mut local, &wl, shape[j], alphas, &axis[j]);
@@ -370,7 +370,7 @@ impl CellSet {
             {
                 let xs: &[V3] = x;
                 let solve_one = |j: usize, local: &mut [V3; 8]| {
-                    *local = nodes[j].map(|n| xs[n as usize]);
+                    *local = gather(&nodes[j], xs);
                     let wl = nodes[j].map(|n| w[n as usize]);
                     let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
                     solve_cell(local, &wl, shape[j], alphas, &axis[j]);
@@ -432,7 +432,7 @@ impl CellSet {
             if !cell.iter().any(|&n| moved[n as usize]) {
                 continue;
             }
-            let mut local = cell.map(|n| x[n as usize]);
+            let mut local = gather(cell, x);
             let wl = cell.map(|n| w[n as usize]);
             let unused = [1.0; 3];
             solve_cell(
