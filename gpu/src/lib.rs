@@ -406,6 +406,19 @@ impl GpuSolver {
         stages
     }
 
+    /// Record the cells' census into half `half` of its buffer (0: the energy's, taken before
+    /// the last substep's contacts; 1: after the frame): the half is bind group 2's index,
+    /// which the caller sets back for the stages after it.
+    fn record_census(&self, pass: &mut wgpu::ComputePass<'_>, half: u32) {
+        pass.set_bind_group(2, &self.steps, &[half * self.step_align]);
+        let census = Dispatch {
+            pipeline: &self.pipelines.cell_census,
+            span: None,
+            groups: groups(self.params.cell_count),
+        };
+        self.record(pass, &[census]);
+    }
+
     /// Record `dispatches` into `pass` (bind groups 0 and 2 already set).
     fn record(&self, pass: &mut wgpu::ComputePass<'_>, dispatches: &[Dispatch<'_>]) {
         for d in dispatches.iter().filter(|d| d.groups > 0) {
@@ -537,14 +550,10 @@ impl GpuSolver {
         // (the cells as the elastic solve left them, as the CPU's `Model::elastic_energy`
         // reads them); the other half (inverted cells, least ratio) after the frame.
         let census_groups = groups(self.params.cell_count);
-        let measure = || Dispatch {
-            pipeline: &self.pipelines.cell_census,
-            span: None,
-            groups: census_groups,
-        };
         let before_contact = (stages.iter())
             .position(|s| s.0.starts_with("contact"))
             .unwrap_or(stages.len());
+        let (elastic, contacts) = stages.split_at(before_contact);
         for first in (0..substeps).step_by(SUBSTEPS_PER_PASS as usize) {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("substeps"),
@@ -553,17 +562,15 @@ impl GpuSolver {
             pass.set_bind_group(0, &self.state, &[]);
             for k in first..(first + SUBSTEPS_PER_PASS).min(substeps) {
                 pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
-                for (at, stage) in stages.iter().enumerate() {
-                    if k + 1 == substeps && at == before_contact {
-                        pass.set_bind_group(2, &self.steps, &[0]);
-                        self.record(&mut pass, &[measure()]);
-                        pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
-                    }
+                for stage in elastic {
                     self.record(&mut pass, &stage.1);
                 }
-                if k + 1 == substeps && before_contact == stages.len() {
-                    pass.set_bind_group(2, &self.steps, &[0]);
-                    self.record(&mut pass, &[measure()]);
+                if k + 1 == substeps {
+                    self.record_census(&mut pass, 0);
+                    pass.set_bind_group(2, &self.steps, &[k * self.step_align]);
+                }
+                for stage in contacts {
+                    self.record(&mut pass, &stage.1);
                 }
             }
         }
@@ -573,8 +580,7 @@ impl GpuSolver {
                 timestamp_writes: None,
             });
             pass.set_bind_group(0, &self.state, &[]);
-            pass.set_bind_group(2, &self.steps, &[self.step_align]);
-            self.record(&mut pass, &[measure()]);
+            self.record_census(&mut pass, 1);
         }
         let n = u64::from(self.params.node_count);
         encoder.copy_buffer_to_buffer(&self.buffers.prev, 0, &self.staging, 0, 16 * n);

@@ -357,23 +357,25 @@ fn solve_cells(@builtin(global_invocation_id) id: vec3<u32>) {
 
 var<workgroup> census_scratch: array<vec4<f32>, 64>;
 
-// Corner c's volume ratio det F.
-fn corner_ratio(c: u32, inv_h: f32) -> f32 {
+// Corner c's F: its three edges times s_k / h.
+fn corner_f(c: u32, inv_h: f32) -> array<vec3<f32>, 3> {
     let s = signs(c, inv_h);
-    let f0 = (lx[c ^ 1u] - lx[c]) * s.x;
-    let f1 = (lx[c ^ 2u] - lx[c]) * s.y;
-    let f2 = (lx[c ^ 4u] - lx[c]) * s.z;
-    return dot(f0, cross(f1, f2));
-}
-
-// Σ r_i r_j E_ij² of corner c's Green strain (the shear constraint's value, squared).
-fn strain_squared(c: u32, inv_h: f32, r: vec3<f32>) -> f32 {
-    let s = signs(c, inv_h);
-    let f = array<vec3<f32>, 3>(
+    return array<vec3<f32>, 3>(
         (lx[c ^ 1u] - lx[c]) * s.x,
         (lx[c ^ 2u] - lx[c]) * s.y,
         (lx[c ^ 4u] - lx[c]) * s.z,
     );
+}
+
+// Corner c's volume ratio det F.
+fn corner_ratio(c: u32, inv_h: f32) -> f32 {
+    let f = corner_f(c, inv_h);
+    return dot(f[0], cross(f[1], f[2]));
+}
+
+// Σ r_i r_j E_ij² of corner c's Green strain (the shear constraint's value, squared).
+fn strain_squared(c: u32, inv_h: f32, r: vec3<f32>) -> f32 {
+    let f = corner_f(c, inv_h);
     var sum = 0.0;
     for (var j = 0u; j < 3u; j++) {
         for (var i = 0u; i < 3u; i++) {
