@@ -628,21 +628,20 @@ fn inverted_warning(
     if with.len() > listed.len() {
         listed.push(format!("… {} frames in all", with.len()));
     }
+    let busiest = frames.iter().map(|f| f.substeps).max().unwrap_or(0);
     let advice = match loaded.scene.solver.integrator {
         springbake_core::scene::IntegratorSpec::Xpbd
             if loaded.scene.solver.substeps != springbake_core::scene::SubstepSpec::Auto =>
         {
-            let fixed = frames.iter().map(|f| f.substeps).max().unwrap_or(0);
             format!(
-                "they took the {fixed} substeps the scene sets; try [solver] substeps = \"auto\" \
-                 or {}",
-                2 * fixed.max(1)
+                "they took the {busiest} substeps the scene sets; try [solver] substeps = \
+                 \"auto\" or {}",
+                2 * busiest.max(1)
             )
         }
         springbake_core::scene::IntegratorSpec::Xpbd => {
             // Twice what the folding frames took, and no fewer than any frame took.
             let folding = with.iter().map(|f| f.substeps).max().unwrap_or(0);
-            let busiest = frames.iter().map(|f| f.substeps).max().unwrap_or(0);
             format!(
                 "they took up to {folding} substeps; try [solver] substeps = {} (or a softer push \
                  or impact)",
