@@ -42,7 +42,7 @@ use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
-use cells::{CellInput, CellSet, PointGroups};
+use cells::{CellInput, CellSet};
 use contact::{resolve_colliders, ColliderContact, PointContact, PointMeans, Surfaces};
 use glue::Glue;
 use nalgebra::Vector3;
@@ -92,9 +92,9 @@ const RESTITUTION_CONTACT_TOLERANCE: f64 = 1e-4;
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Model {
     cells: CellSet,
-    /// The display-surface points by the cell they lie in, in colour order: the order the
-    /// contact pass visits them (what a device solver can run a colour at a time).
-    points: PointGroups,
+    /// The order the contact pass visits the display-surface points in (by the cell they lie
+    /// in, in colour order; the order a device sums each node's points' asks in).
+    point_order: Vec<u32>,
     /// Per point in that order, what the contact pass reads of it (in the order it reads
     /// them: from `World::surface` in point order, a pass missed the cache at every point).
     visits: Vec<PointVisit>,
@@ -229,9 +229,8 @@ impl Model {
         }
         cells.finish(n);
         let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
-        let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
-        let visits = points
-            .order
+        let point_order = cells.point_order(world.surface.nodes.iter().map(resolve));
+        let visits = point_order
             .iter()
             .map(|&i| PointVisit {
                 nodes: world.surface.nodes[i as usize],
@@ -252,7 +251,7 @@ impl Model {
         };
         let mut model = Model {
             cells,
-            points,
+            point_order,
             visits,
             springs,
             shortest_edge,
@@ -296,7 +295,7 @@ impl Model {
             .filter(|&(_, share, _)| share >= 1.0)
             .map(|(b, _, _)| b)
             .collect();
-        for (visit, &i) in self.visits.iter_mut().zip(&self.points.order) {
+        for (visit, &i) in self.visits.iter_mut().zip(&self.point_order) {
             visit.sequential = stiff.contains(&(world.surface.body[i as usize] as usize));
         }
     }
@@ -322,7 +321,7 @@ impl Model {
         (
             Vec<crate::solver::device::DeviceCell>,
             Vec<std::ops::Range<u32>>,
-            PointGroups,
+            Vec<u32>,
         ),
         String,
     > {
@@ -336,7 +335,7 @@ impl Model {
             return Err("cells that are not lattice cubes (cages, sheared lattices)".into());
         }
         let (cells, colours) = self.cells.device_cells();
-        Ok((cells, colours, self.points.clone()))
+        Ok((cells, colours, self.point_order.clone()))
     }
 
     /// Whether the restitution of stiff bodies can act at the substeps the material's
@@ -1038,7 +1037,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     }
     model.in_contact.clear();
     model.point_means.begin(x.len());
-    for (&i, visit) in model.points.order.iter().zip(&model.visits) {
+    for (&i, visit) in model.point_order.iter().zip(&model.visits) {
         let i = i as usize;
         if colliders {
             model.collider_touch[i] = None;
