@@ -116,9 +116,9 @@ pub struct GpuSolver {
     step_align: u32,
     /// Slots of `push` for the nodes and points.
     push_slots: u32,
-    /// Byte offset of each span in the span buffer: the cells' colours.
+    /// Byte offset of each span in the span buffer: the cells' colours, then the points'.
     span_offsets: Vec<u32>,
-    /// Cells in each span.
+    /// Cells or point groups in each span.
     span_sizes: Vec<u32>,
     cell_colours: usize,
     params_buffer: wgpu::Buffer,
@@ -206,7 +206,7 @@ impl GpuSolver {
         let most = [
             node_count,
             model.cells.len() as u32,
-            model.point_nodes.len() as u32,
+            model.point_groups.len() as u32,
         ]
         .into_iter()
         .max()

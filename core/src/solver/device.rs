@@ -10,8 +10,8 @@
 //! A device runs the substep of [`super::xpbd`] stage for stage, in f32: prediction with
 //! gravity, static pins, the lattice cells colour by colour, the torque cancellation, contact
 //! with friction against the floor, walls and capsule manipulators for nodes and
-//! display-surface points (each point's ask of its nodes, then each node's mean of its points'
-//! asks, summed in the order the CPU visits the points), the collapse barriers of the cells the contacts moved, velocities, and the
+//! display-surface points (the points a colour of cells at a time, in the order the CPU visits
+//! them), the collapse barriers of the cells the contacts moved, velocities, and the
 //! deformation damping. What it does not run is named by
 //! [`World::device_model`]'s error, and the caller steps that world on the CPU.
 
@@ -69,9 +69,13 @@ pub struct DeviceModel {
     pub point_nodes: Vec<[u32; 8]>,
     pub point_weights: Vec<[f64; 8]>,
     pub point_reach: Vec<f64>,
-    /// Point indices in the order the CPU's contact pass visits them (the order each node's
-    /// points' asks are summed in).
+    /// Point indices, group after group (the points of one cell, visited in this order).
     pub point_order: Vec<u32>,
+    /// Ranges of `point_order`.
+    pub point_groups: Vec<Range<u32>>,
+    /// Ranges of `point_groups` whose groups share no node (the last may be one group of
+    /// points in no cell).
+    pub point_colours: Vec<Range<u32>>,
     pub bodies: Vec<DeviceBody>,
     /// Rigid planes: unit normal and offset (`n · x ≥ offset` is outside).
     pub planes: Vec<([f64; 3], f64)>,
@@ -216,7 +220,9 @@ impl World {
             point_nodes: s.nodes.clone(),
             point_weights: s.weights.clone(),
             point_reach: s.reach.clone(),
-            point_order: points,
+            point_order: points.order,
+            point_groups: points.groups,
+            point_colours: points.colours,
             bodies,
             planes: self
                 .settings

@@ -42,7 +42,7 @@ use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
-use cells::{CellInput, CellSet};
+use cells::{CellInput, CellSet, PointGroups};
 use contact::{resolve_colliders, ColliderContact, PointContact, PointMeans, Surfaces};
 use glue::Glue;
 use nalgebra::Vector3;
@@ -92,9 +92,9 @@ const RESTITUTION_CONTACT_TOLERANCE: f64 = 1e-4;
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Model {
     cells: CellSet,
-    /// The order the contact pass visits the display-surface points in (by the cell they lie
-    /// in, in colour order; the order a device sums each node's points' asks in).
-    point_order: Vec<u32>,
+    /// The display-surface points by the cell they lie in, in colour order: the order the
+    /// contact pass visits them (what a device solver can run a colour at a time).
+    points: PointGroups,
     /// Per point in that order, what the contact pass reads of it (in the order it reads
     /// them: from `World::surface` in point order, a pass missed the cache at every point).
     visits: Vec<PointVisit>,
@@ -229,8 +229,9 @@ impl Model {
         }
         cells.finish(n);
         let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
-        let point_order = cells.point_order(world.surface.nodes.iter().map(resolve));
-        let visits = point_order
+        let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
+        let visits = points
+            .order
             .iter()
             .map(|&i| PointVisit {
                 nodes: world.surface.nodes[i as usize],
@@ -251,7 +252,7 @@ impl Model {
         };
         let mut model = Model {
             cells,
-            point_order,
+            points,
             visits,
             springs,
             shortest_edge,
@@ -295,7 +296,7 @@ impl Model {
             .filter(|&(_, share, _)| share >= 1.0)
             .map(|(b, _, _)| b)
             .collect();
-        for (visit, &i) in self.visits.iter_mut().zip(&self.point_order) {
+        for (visit, &i) in self.visits.iter_mut().zip(&self.points.order) {
             visit.sequential = stiff.contains(&(world.surface.body[i as usize] as usize));
         }
     }
@@ -321,7 +322,7 @@ impl Model {
         (
             Vec<crate::solver::device::DeviceCell>,
             Vec<std::ops::Range<u32>>,
-            Vec<u32>,
+            PointGroups,
         ),
         String,
     > {
@@ -335,7 +336,7 @@ impl Model {
             return Err("cells that are not lattice cubes (cages, sheared lattices)".into());
         }
         let (cells, colours) = self.cells.device_cells();
-        Ok((cells, colours, self.point_order.clone()))
+        Ok((cells, colours, self.points.clone()))
     }
 
     /// Whether the restitution of stiff bodies can act at the substeps the material's
@@ -1037,7 +1038,7 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     }
     model.in_contact.clear();
     model.point_means.begin(x.len());
-    for (&i, visit) in model.point_order.iter().zip(&model.visits) {
+    for (&i, visit) in model.points.order.iter().zip(&model.visits) {
         let i = i as usize;
         if colliders {
             model.collider_touch[i] = None;
