@@ -23,8 +23,7 @@ pub struct Params {
     pub node_count: u32,
     pub plane_count: u32,
     pub body_count: u32,
-    /// Where each node's list of the points that ask it starts in `index` (see [`Packed`]).
-    pub lists_offset: u32,
+    pub group_offset: u32,
     pub capsule_count: u32,
     pub point_count: u32,
     pub push_chunks: u32,
@@ -133,9 +132,7 @@ pub struct Packed {
     pub pins: Vec<[f32; 4]>,
     pub cells: Vec<Cell>,
     pub points: Vec<Point>,
-    /// Per node, the display-surface points that ask it to move (the contact pass's means):
-    /// `node count + 1` offsets into `index` itself, then the entries `point × 8 + corner`,
-    /// each node's in the CPU's visiting order of the points (from `params.lists_offset`).
+    /// The points' order, then each group's `[start, end)` (from `params.group_offset`).
     pub index: Vec<u32>,
     pub bodies: Vec<Body>,
     pub chunks: Vec<Chunk>,
@@ -177,7 +174,13 @@ pub fn pack(model: &DeviceModel) -> Packed {
             pad: [0.0; 3],
         })
         .collect();
-    let index = point_lists(model, n);
+    let mut index = model.point_order.clone();
+    for g in &model.point_groups {
+        index.extend([g.start, g.end]);
+    }
+    if index.is_empty() {
+        index.push(0);
+    }
     let (mut bodies, mut chunks) = (Vec::new(), Vec::new());
     for (b, body) in model.bodies.iter().enumerate() {
         let chunk_start = chunks.len() as u32;
@@ -218,27 +221,6 @@ pub fn pack(model: &DeviceModel) -> Packed {
         bodies,
         chunks,
     }
-}
-
-/// [`Packed::index`]: each node's list of the points that ask it, in the visiting order.
-fn point_lists(model: &DeviceModel, nodes: usize) -> Vec<u32> {
-    let mut lists = vec![Vec::new(); nodes];
-    for &p in &model.point_order {
-        for (k, &n) in model.point_nodes[p as usize].iter().enumerate() {
-            lists[n as usize].push(p * 8 + k as u32);
-        }
-    }
-    let mut index = Vec::with_capacity(nodes + 1 + 8 * model.point_order.len());
-    let mut at = nodes as u32 + 1;
-    for list in &lists {
-        index.push(at);
-        at += list.len() as u32;
-    }
-    index.push(at);
-    for list in lists {
-        index.extend(list);
-    }
-    index
 }
 
 /// Each body's mean node position (the shader's reference point for its sums, so they are

@@ -92,7 +92,6 @@ struct Pipelines {
     torque_apply: wgpu::ComputePipeline,
     contact_nodes: wgpu::ComputePipeline,
     contact_points: wgpu::ComputePipeline,
-    contact_means: wgpu::ComputePipeline,
     barrier_cells: wgpu::ComputePipeline,
     velocities: wgpu::ComputePipeline,
     damp_sums: wgpu::ComputePipeline,
@@ -138,7 +137,7 @@ pub struct GpuSolver {
     errors: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
-const STORAGE_BINDINGS: [(u32, bool); 20] = [
+const STORAGE_BINDINGS: [(u32, bool); 19] = [
     (1, false),
     (2, false),
     (3, false),
@@ -158,7 +157,6 @@ const STORAGE_BINDINGS: [(u32, bool); 20] = [
     (17, true),
     (18, false),
     (19, false),
-    (20, false),
 ];
 
 fn storage(device: &wgpu::Device, label: &str, contents: &[u8]) -> wgpu::Buffer {
@@ -242,6 +240,7 @@ impl GpuSolver {
         let spans: Vec<(u32, u32)> = model
             .cell_colours
             .iter()
+            .chain(&model.point_colours)
             .map(|r| (r.start, r.end))
             .collect();
         let align = limits.min_uniform_buffer_offset_alignment.max(8);
@@ -259,7 +258,7 @@ impl GpuSolver {
             node_count,
             plane_count: model.planes.len() as u32,
             body_count: packed.bodies.len() as u32,
-            lists_offset: 0,
+            group_offset: model.point_order.len() as u32,
             capsule_count: 0,
             point_count: model.point_nodes.len() as u32,
             push_chunks: 0,
@@ -385,12 +384,8 @@ impl GpuSolver {
         if self.params.plane_count > 0 || self.params.capsule_count > 0 {
             stages.push(Stage("contact nodes", vec![whole(&p.contact_nodes, nodes)]));
             if self.has_points {
-                let points = groups(self.params.point_count);
-                let asks = whole(&p.contact_points, points);
-                stages.push(Stage(
-                    "contact points",
-                    vec![asks, whole(&p.contact_means, nodes)],
-                ));
+                let points = spans(&p.contact_points, &mut self.point_counts());
+                stages.push(Stage("contact points", points));
             }
             if self.params.capsule_count > 0 {
                 let sums = whole(&p.push_sums, self.params.push_chunks);
@@ -459,6 +454,11 @@ impl GpuSolver {
     /// (span index, cell count) of each cells' colour.
     fn cell_counts(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
         (0..self.cell_colours).map(|k| (k, self.span_sizes[k]))
+    }
+
+    /// (span index, group count) of each points' colour.
+    fn point_counts(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        (self.cell_colours..self.span_sizes.len()).map(|k| (k, self.span_sizes[k]))
     }
 }
 
@@ -694,7 +694,6 @@ struct Buffers {
     capsules: wgpu::Buffer,
     push: wgpu::Buffer,
     census: wgpu::Buffer,
-    asks: wgpu::Buffer,
 }
 
 impl Buffers {
@@ -733,7 +732,6 @@ impl Buffers {
                 "census",
                 &zeros(2 * 16 * groups(p.cells.len() as u32) as usize),
             ),
-            asks: storage(device, "asks", &zeros(16 * p.points.len().max(1))),
         }
     }
 
@@ -764,7 +762,6 @@ impl Buffers {
             &self.capsules,
             &self.push,
             &self.census,
-            &self.asks,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = order
             .iter()
@@ -881,7 +878,6 @@ fn build_pipelines(
         torque_apply: make("torque_apply"),
         contact_nodes: make("contact_nodes"),
         contact_points: make("contact_points"),
-        contact_means: make("contact_means"),
         barrier_cells: make("barrier_cells"),
         velocities: make("velocities"),
         damp_sums: make("damp_sums"),

@@ -8,7 +8,7 @@
 // a second that rounding alone is 4e-5 m/s a substep, and it grows into position errors
 // quadratically); the host adds `prev + x` to its f64 positions after the frame. A cell
 // works on its nodes relative to its first node, a plane on a point's distance to it. Every pass writes
-// disjoint slots (cells a colour at a time, points and nodes one each, reductions over fixed chunks in
+// disjoint slots (cells and point groups a colour at a time, reductions over fixed chunks in
 // a fixed tree), so a run gives the same bits every time on one adapter.
 
 struct Params {
@@ -20,8 +20,7 @@ struct Params {
     node_count: u32,
     plane_count: u32,
     body_count: u32,
-    // Where each node's list of the points that ask it starts in `index`.
-    lists_offset: u32,
+    group_offset: u32,
     capsule_count: u32,
     point_count: u32,
     // Chunks of PUSH_CHUNK slots over `push`'s node and point slots.
@@ -140,9 +139,6 @@ struct BodyOut {
 // inverted cells, 0); two halves, the one a census dispatch writes chosen by its bind group 2
 // index (0: in the last substep before the contacts, 1: after the frame).
 @group(0) @binding(19) var<storage, read_write> census: array<vec4<f32>>;
-// Per display-surface point: its ask of its nodes in this substep (its correction over
-// `W = Σ w_c² m_c⁻¹`, xyz) and 1 in w where it touched (the CPU's `contact::PointMeans`).
-@group(0) @binding(20) var<storage, read_write> asks: array<vec4<f32>>;
 @group(1) @binding(0) var<uniform> span: Span;
 @group(2) @binding(0) var<uniform> substep: Step;
 
@@ -739,74 +735,49 @@ fn beyond_reach(n: u32, reach: f32) -> bool {
     return true;
 }
 
-// Each display-surface point's ask of its nodes, all taken from the same positions.
 @compute @workgroup_size(64)
 fn contact_points(@builtin(global_invocation_id) id: vec3<u32>) {
-    let p = id.x;
-    if p >= params.point_count {
+    let g = span.start + id.x;
+    if g >= span.end {
         return;
     }
-    let slot = params.node_count + p;
-    push[slot] = vec4<f32>(0.0);
-    asks[p] = vec4<f32>(0.0);
-    let point = points[p];
-    if beyond_reach(point.nodes[0], point.reach) {
-        return;
-    }
-    var at = vec3<f32>(0.0);
-    var travel = vec3<f32>(0.0);
-    var step = vec3<f32>(0.0);
-    var denominator = 0.0;
-    for (var c = 0u; c < 8u; c++) {
-        let n = point.nodes[c];
-        let w = point.weights[c];
-        at += base[n].xyz * w;
-        travel += prev[n].xyz * w;
-        step += x[n].xyz * w;
-        denominator += w * w * base[n].w;
-    }
-    if denominator <= 0.0 {
-        return;
-    }
-    let c = resolve(at, travel, step);
-    if c.depth <= 0.0 {
-        return;
-    }
-    note_depth(c.depth);
-    let scale = params.inv_dt2 / denominator;
-    push[slot] = vec4<f32>(c.from_capsules * scale, c.capsule_work * scale);
-    asks[p] = vec4<f32>(c.correction / denominator, 1.0);
-}
-
-// Each node moves by its points' asks' mean weighted by their weights at it.
-@compute @workgroup_size(64)
-fn contact_means(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = id.x;
-    if n >= params.node_count {
-        return;
-    }
-    let first = index[params.lists_offset + n];
-    let last = index[params.lists_offset + n + 1u];
-    var sum = vec3<f32>(0.0);
-    var weight = 0.0;
-    var asked = false;
-    for (var e = first; e < last; e++) {
-        let entry = index[e];
-        let ask = asks[entry / 8u];
-        if ask.w > 0.0 {
-            asked = true;
-            let w = points[entry / 8u].weights[entry % 8u];
-            if w > 0.0 {
-                sum += ask.xyz * (w * base[n].w) * w;
-                weight += w;
-            }
+    let first = index[params.group_offset + 2u * g];
+    let last = index[params.group_offset + 2u * g + 1u];
+    for (var o = first; o < last; o++) {
+        let slot = params.node_count + index[o];
+        push[slot] = vec4<f32>(0.0);
+        let point = points[index[o]];
+        if beyond_reach(point.nodes[0], point.reach) {
+            continue;
         }
-    }
-    if asked {
-        moved[n] = 1u;
-    }
-    if weight > 0.0 {
-        x[n] = vec4<f32>(x[n].xyz + sum / weight, 0.0);
+        var at = vec3<f32>(0.0);
+        var travel = vec3<f32>(0.0);
+        var step = vec3<f32>(0.0);
+        var denominator = 0.0;
+        for (var c = 0u; c < 8u; c++) {
+            let n = point.nodes[c];
+            let w = point.weights[c];
+            at += base[n].xyz * w;
+            travel += prev[n].xyz * w;
+            step += x[n].xyz * w;
+            denominator += w * w * base[n].w;
+        }
+        if denominator <= 0.0 {
+            continue;
+        }
+        let c = resolve(at, travel, step);
+        if c.depth <= 0.0 {
+            continue;
+        }
+        note_depth(c.depth);
+        let scale = params.inv_dt2 / denominator;
+        push[slot] = vec4<f32>(c.from_capsules * scale, c.capsule_work * scale);
+        for (var k = 0u; k < 8u; k++) {
+            let n = point.nodes[k];
+            let step = c.correction * (point.weights[k] * base[n].w / denominator);
+            x[n] = vec4<f32>(x[n].xyz + step, 0.0);
+            moved[n] = 1u;
+        }
     }
 }
 

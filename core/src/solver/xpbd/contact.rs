@@ -9,24 +9,9 @@
 //! points ([`resolve_colliders`]), with the entering segment tested so a thin collider is
 //! not tunnelled through.
 //!
-//! A node takes the correction directly. A display-surface point (an embedded point, eight
-//! trilinear weights `w_c`) asks its cell's nodes for `w_c m_c⁻¹ δ / W`, `W = Σ w_c² m_c⁻¹`,
-//! which alone would move the point by exactly `δ` and share momentum as a rigid contact
-//! would. All the points' asks are taken from the same positions, and each node then moves by
-//! their mean weighted by `w_c` ([`PointMeans`]: Jacobi with averaging). Taken one after the
-//! other (Gauss–Seidel), each point seeing the moves of those before it, the asks piled up on a
-//! lattice's corner and edge nodes (an eighth and a quarter of an inner node's mass): at a
-//! box's edge landing a dozen points each 1–2 mm deep pushed their shared nodes 12 mm up in one
-//! substep, which folded the cell above them (its corner at −0.25 of its volume after the
-//! contacts, every substep of the landing) and flicked the nodes off the floor. Twelve rubber
-//! boxes (15–30 cm, 6–10 cells) dropped flat from 1.25 m, which tumble onto their edges,
-//! ended 17 frames with a cell inverted that way and none with the means.
-//!
-//! Bodies so stiff that the restitution moves them as a whole (`restitution`: their elastic
-//! wave crosses them within a substep, as wood's and steel's do at a hand's size) keep the
-//! points one after the other: their cells pass every push to the whole body within the
-//! substep, the means of redundant points then stop converging, and a steel cone dropped 2°
-//! off its base came to rest 1.1° off it, a part of its base in the floor.
+//! A node takes the correction directly; a display-surface point (an embedded point, eight
+//! trilinear weights `w_c`) moves its cell's nodes by `w_c m_c⁻¹ δ / W`, `W = Σ w_c² m_c⁻¹`, so
+//! the point itself moves by exactly `δ` and momentum is shared as a rigid contact would.
 
 use crate::collide::StaticCollider;
 use crate::solver::manipulator::Capsule;
@@ -155,51 +140,6 @@ pub(super) fn tangential(d: V3, n: &V3) -> V3 {
     d - n * d.dot(n)
 }
 
-/// Per node, the weighted sum of the display-surface points' asks in one substep's pass, and
-/// the sum of their weights (module docs).
-#[derive(Debug, Clone, Default)]
-pub(crate) struct PointMeans {
-    sum: Vec<V3>,
-    weight: Vec<f64>,
-    /// Nodes with a weight, in the order they were first asked.
-    asked: Vec<u32>,
-}
-
-impl PointMeans {
-    /// Start a pass over the points of a world of `nodes` nodes.
-    pub(crate) fn begin(&mut self, nodes: usize) {
-        for &n in &self.asked {
-            self.sum[n as usize] = V3::zeros();
-            self.weight[n as usize] = 0.0;
-        }
-        self.asked.clear();
-        self.sum.resize(nodes, V3::zeros());
-        self.weight.resize(nodes, 0.0);
-    }
-
-    /// A point of weight `weight` at node `n` asks it to move by `step`.
-    pub(crate) fn add(&mut self, n: usize, step: V3, weight: f64) {
-        if weight <= 0.0 {
-            return;
-        }
-        if self.weight[n] == 0.0 {
-            self.asked.push(n as u32);
-        }
-        self.sum[n] += step * weight;
-        self.weight[n] += weight;
-    }
-
-    /// Move each asked node of `x` by its weighted mean ask, and add the move to `shift`.
-    pub(crate) fn apply(&self, x: &mut [V3], shift: &mut [V3]) {
-        for &n in &self.asked {
-            let n = n as usize;
-            let step = self.sum[n] / self.weight[n];
-            x[n] += step;
-            shift[n] += step;
-        }
-    }
-}
-
 /// The part of `slip` friction removes: all of it while it is within `limit` (static), else
 /// `limit` of its length (kinetic).
 pub(super) fn friction(slip: V3, limit: f64) -> V3 {
@@ -214,30 +154,6 @@ pub(super) fn friction(slip: V3, limit: f64) -> V3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_node_moves_by_the_weighted_mean_of_its_points_asks() {
-        let mut means = PointMeans::default();
-        means.begin(3);
-        let up = V3::new(0.0, 1e-3, 0.0);
-        means.add(0, up, 0.75);
-        means.add(0, up * 3.0, 0.25);
-        means.add(1, up * 7.0, 0.0);
-        means.add(2, up * 2.0, 0.5);
-        let mut x = vec![V3::zeros(); 3];
-        let mut shift = vec![V3::zeros(); 3];
-        means.apply(&mut x, &mut shift);
-        assert!((x[0].y - 1.5e-3).abs() < 1e-18, "{}", x[0]);
-        assert_eq!(x[1], V3::zeros(), "a weight of zero asks nothing");
-        assert_eq!(x[2], up * 2.0);
-        assert_eq!(shift, x);
-        // The next pass starts from nothing.
-        means.begin(3);
-        means.add(2, up, 1.0);
-        let mut y = vec![V3::zeros(); 3];
-        means.apply(&mut y, &mut shift);
-        assert_eq!(y, vec![V3::zeros(), V3::zeros(), up]);
-    }
 
     #[test]
     fn a_point_below_the_floor_lands_on_it_and_sticks_within_the_friction_cone() {

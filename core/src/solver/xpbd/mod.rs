@@ -43,7 +43,7 @@ use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet, PointGroups};
-use contact::{resolve_colliders, ColliderContact, PointContact, PointMeans, Surfaces};
+use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
 use glue::Glue;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -147,8 +147,6 @@ pub(crate) struct Model {
     glue: Glue,
     /// The substeps' doublings for cells near collapse (`crowding`).
     crowding: Crowding,
-    /// The display-surface points' pushes of each node in the current substep (`contact`).
-    point_means: PointMeans,
 }
 
 /// A display-surface point as the contact pass reads it (`World::surface`'s records).
@@ -157,10 +155,6 @@ struct PointVisit {
     nodes: [u32; 8],
     weights: [f64; 8],
     reach: f64,
-    /// Its body is so stiff that the restitution moves it as a whole: its points move their
-    /// nodes one after the other (Gauss–Seidel), not by each node's mean of their asks
-    /// (`contact` docs).
-    sequential: bool,
 }
 
 /// What one step reports to the world's frame totals.
@@ -237,7 +231,6 @@ impl Model {
                 nodes: world.surface.nodes[i as usize],
                 weights: world.surface.weights[i as usize],
                 reach: world.surface.reach[i as usize],
-                sequential: false,
             })
             .collect();
         let s = &world.springs;
@@ -250,7 +243,7 @@ impl Model {
         } else {
             shortest_spring
         };
-        let mut model = Model {
+        Model {
             cells,
             points,
             visits,
@@ -281,36 +274,7 @@ impl Model {
             restitution: Restitution::build(world),
             glue: Glue::default(),
             crowding: Crowding::default(),
-            point_means: PointMeans::default(),
-        };
-        model.mark_sequential_points(world);
-        model
-    }
-
-    /// The display-surface points of the bodies the restitution moves as a whole at the
-    /// substeps of their stiffness (their elastic wave crosses them within one) move their
-    /// nodes one after the other (`contact` docs).
-    fn mark_sequential_points(&mut self, world: &World) {
-        let dt = 1.0 / self.stiffness_substep_rate();
-        let stiff: Vec<usize> = (self.restitution.shares_at(dt))
-            .filter(|&(_, share, _)| share >= 1.0)
-            .map(|(b, _, _)| b)
-            .collect();
-        for (visit, &i) in self.visits.iter_mut().zip(&self.points.order) {
-            visit.sequential = stiff.contains(&(world.surface.body[i as usize] as usize));
         }
-    }
-
-    /// Substeps a second the material's stiffness asks for (the longest [`choose_substeps`]
-    /// picks).
-    fn stiffness_substep_rate(&self) -> f64 {
-        let (h, speed) = (self.shortest_edge, self.cells.wave_speed);
-        let by_wave = if h > 0.0 && speed > 0.0 {
-            SUBSTEPS_PER_WAVE_CROSSING * speed / h
-        } else {
-            0.0
-        };
-        by_wave.clamp(MIN_SUBSTEP_RATE, MAX_STIFFNESS_SUBSTEP_RATE)
     }
 
     /// The cells and display-surface points as a device takes them (see
@@ -342,8 +306,14 @@ impl Model {
     /// Whether the restitution of stiff bodies can act at the substeps the material's
     /// stiffness asks for (the longest [`choose_substeps`] picks).
     pub(crate) fn restitution_may_act(&self) -> bool {
-        self.restitution
-            .acts_at(1.0 / self.stiffness_substep_rate())
+        let (h, speed) = (self.shortest_edge, self.cells.wave_speed);
+        let by_wave = if h > 0.0 && speed > 0.0 {
+            SUBSTEPS_PER_WAVE_CROSSING * speed / h
+        } else {
+            0.0
+        };
+        let rate = by_wave.clamp(MIN_SUBSTEP_RATE, MAX_STIFFNESS_SUBSTEP_RATE);
+        self.restitution.acts_at(1.0 / rate)
     }
 
     /// Elastic energy of the cells and constraint springs now, J, as the last substep's
@@ -1037,7 +1007,6 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         model.point_contact[i as usize] = (V3::zeros(), 0.0, V3::zeros());
     }
     model.in_contact.clear();
-    model.point_means.begin(x.len());
     for (&i, visit) in model.points.order.iter().zip(&model.visits) {
         let i = i as usize;
         if colliders {
@@ -1092,16 +1061,11 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         for k in 0..8 {
             let n = ids[k] as usize;
             let step = correction * (weights[k] * w[n] / denominator);
+            x[n] += step;
+            model.contact_shift[n] += step;
             model.moved[n] = true;
-            if visit.sequential {
-                x[n] += step;
-                model.contact_shift[n] += step;
-            } else {
-                model.point_means.add(n, step, weights[k]);
-            }
         }
     }
-    model.point_means.apply(x, &mut model.contact_shift);
     out
 }
 
