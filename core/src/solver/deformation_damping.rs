@@ -8,9 +8,9 @@
 //! frequency `ω₁ ≈ π sqrt(E/ρ) / ℓ` (ℓ the longest side). Linear and angular momentum are kept
 //! exactly: rigid motion is not damped.
 
+use super::team::{self, Chunks};
 use super::{NodeState, PAR_CHUNK};
 use nalgebra::{Matrix3, Vector3};
-use rayon::prelude::*;
 use std::ops::Range;
 
 /// The rigid motion of a body at one instant.
@@ -61,19 +61,15 @@ pub fn rigid_motion_in(
     scratch
         .first
         .resize(chunks, (0.0, Vector3::zeros(), Vector3::zeros()));
-    scratch
-        .first
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(c, out)| {
-            let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
-            for i in chunk(c) {
-                m += nodes.mass[i];
-                mx += nodes.position[i] * nodes.mass[i];
-                mv += nodes.velocity[i] * nodes.mass[i];
-            }
-            *out = (m, mx, mv);
-        });
+    team::for_each(Chunks::new(&mut scratch.first, 1), |c, out: &mut [_]| {
+        let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
+        for i in chunk(c) {
+            m += nodes.mass[i];
+            mx += nodes.position[i] * nodes.mass[i];
+            mv += nodes.velocity[i] * nodes.mass[i];
+        }
+        out[0] = (m, mx, mv);
+    });
     let (m, mx, mv) = scratch
         .first
         .iter()
@@ -93,20 +89,16 @@ pub fn rigid_motion_in(
     scratch
         .second
         .resize(chunks, (Matrix3::zeros(), Vector3::zeros()));
-    scratch
-        .second
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(c, out)| {
-            let (mut inertia, mut momentum) = (Matrix3::zeros(), Vector3::zeros());
-            for i in chunk(c) {
-                let d = nodes.position[i] - centre;
-                let mi = nodes.mass[i];
-                inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
-                momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
-            }
-            *out = (inertia, momentum);
-        });
+    team::for_each(Chunks::new(&mut scratch.second, 1), |c, out: &mut [_]| {
+        let (mut inertia, mut momentum) = (Matrix3::zeros(), Vector3::zeros());
+        for i in chunk(c) {
+            let d = nodes.position[i] - centre;
+            let mi = nodes.mass[i];
+            inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
+            momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
+        }
+        out[0] = (inertia, momentum);
+    });
     let (inertia, momentum) = scratch
         .second
         .iter()
@@ -138,17 +130,14 @@ pub(crate) fn damp(
         let pull = (body.deformation_damping * dt).min(1.0);
         let (pos, vel) = (&nodes.position, &mut nodes.velocity);
         let (vel, pos) = (&mut vel[body.nodes.clone()], &pos[body.nodes.clone()]);
-        let pull_node = |(v, x): (&mut Vector3<f64>, &Vector3<f64>)| {
-            *v += (rigid.velocity_at(x) - *v) * pull;
-        };
-        if vel.len() > 2 * PAR_CHUNK {
-            vel.par_iter_mut()
-                .with_min_len(PAR_CHUNK)
-                .zip(pos.par_iter())
-                .for_each(pull_node);
-        } else {
-            vel.iter_mut().zip(pos.iter()).for_each(pull_node);
-        }
+        team::for_each(
+            Chunks::new(vel, PAR_CHUNK),
+            |c, vel: &mut [Vector3<f64>]| {
+                for (v, x) in vel.iter_mut().zip(&pos[c * PAR_CHUNK..]) {
+                    *v += (rigid.velocity_at(x) - *v) * pull;
+                }
+            },
+        );
     }
 }
 

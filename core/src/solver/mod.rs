@@ -28,6 +28,7 @@ pub mod regions;
 pub mod rigid;
 pub mod stencil;
 pub mod substeps;
+mod team;
 pub mod volume;
 mod world;
 pub mod xpbd;

@@ -433,16 +433,16 @@ const XPBD_PARALLEL_WEIGHT: usize = 2;
 /// scene took 3.9 s and 15 s of CPU on the global pool, against 1.5 s on two threads here).
 /// Results do not depend on the choice.
 fn on_worker<R: Send>(nodes: usize, f: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_some() {
-        return f();
-    }
     let threads = threads_for(nodes, rayon::current_num_threads());
+    if rayon::current_thread_index().is_some() {
+        return super::team::with_team(threads, f);
+    }
     if threads < rayon::current_num_threads() {
         if let Some(pool) = sized_pool(threads) {
-            return pool.install(f);
+            return pool.install(|| super::team::with_team(threads, f));
         }
     }
-    rayon::scope(|_| f())
+    rayon::scope(|_| super::team::with_team(threads, f))
 }
 
 /// Threads for a world of parallel size `nodes` given `available` ones: one per

@@ -37,6 +37,7 @@
 
 use super::lanes::{solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
+use crate::solver::team::{self, Chunks, Scatter, Tasks};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -118,6 +119,12 @@ pub(crate) struct PointGroups {
 
 /// Colours past this one go to one serial colour.
 const MAX_COLOURS: usize = 64;
+
+/// Four-cell groups a task of a colour pass solves (see [`team`]).
+const GROUPS_PER_TASK: usize = 8;
+
+/// Cells a task of a colour's scatter writes back.
+const SCATTER_CELLS: usize = 128;
 
 impl CellSet {
     /// Add one cell (in any order; [`Self::finish`] colours them). Degenerate cells are left
@@ -375,52 +382,68 @@ impl CellSet {
                     let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
                     solve_cell(local, &wl, shape[j], alphas, &axis[j]);
                 };
-                // A group takes about a microsecond: hand out at least 16 of them at a time
-                // (a 16³ lattice's colour, 106 groups, splits into a few jobs per thread).
-                out.par_chunks_mut(LANES)
-                    .with_min_len(16)
-                    .enumerate()
-                    .for_each(|(group, locals)| {
-                        let first = group * LANES;
-                        let parity = |j: usize| match shape[j] {
-                            Shape::Cube { odd, .. } => Some(odd),
-                            Shape::Tet { .. } => None,
-                        };
-                        let odd = parity(first);
-                        let lanes = locals.len() == LANES
-                            && odd.is_some()
-                            && (first..first + LANES).all(|j| parity(j) == odd);
-                        if !lanes {
-                            for (k, local) in locals.iter_mut().enumerate() {
-                                solve_one(first + k, local);
-                            }
-                            return;
+                let solve_group = |group: usize, locals: &mut [[V3; 8]]| {
+                    let first = group * LANES;
+                    let parity = |j: usize| match shape[j] {
+                        Shape::Cube { odd, .. } => Some(odd),
+                        Shape::Tet { .. } => None,
+                    };
+                    let odd = parity(first);
+                    let lanes = locals.len() == LANES
+                        && odd.is_some()
+                        && (first..first + LANES).all(|j| parity(j) == odd);
+                    if !lanes {
+                        for (k, local) in locals.iter_mut().enumerate() {
+                            solve_one(first + k, local);
                         }
-                        let cell = |k: usize| first + k;
-                        let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
-                            Shape::Cube { inv_h, .. } => inv_h,
-                            Shape::Tet { .. } => 0.0,
-                        });
-                        let cubes = Cubes {
-                            inv_h,
-                            hydro: std::array::from_fn(|k| hydro[cell(k)] * inv_dt2),
-                            dev: std::array::from_fn(|k| dev[cell(k)] * inv_dt2),
-                            axis_root: std::array::from_fn(|k| axis[cell(k)]),
-                            odd: odd == Some(true),
-                        };
-                        let from = Gather {
-                            nodes: &nodes[first..first + LANES],
-                            x: xs,
-                            w,
-                        };
-                        solve_cubes(locals, &from, &cubes);
+                        return;
+                    }
+                    let cell = |k: usize| first + k;
+                    let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
+                        Shape::Cube { inv_h, .. } => inv_h,
+                        Shape::Tet { .. } => 0.0,
                     });
+                    let cubes = Cubes {
+                        inv_h,
+                        hydro: std::array::from_fn(|k| hydro[cell(k)] * inv_dt2),
+                        dev: std::array::from_fn(|k| dev[cell(k)] * inv_dt2),
+                        axis_root: std::array::from_fn(|k| axis[cell(k)]),
+                        odd: odd == Some(true),
+                    };
+                    let from = Gather {
+                        nodes: &nodes[first..first + LANES],
+                        x: xs,
+                        w,
+                    };
+                    solve_cubes(locals, &from, &cubes);
+                };
+                // A group takes about a microsecond: hand out GROUPS_PER_TASK of them at a
+                // time (a 16³ lattice's colour, 106 groups, is 14 tasks).
+                team::for_each(
+                    Chunks::new(out, LANES * GROUPS_PER_TASK),
+                    |task, locals: &mut [[V3; 8]]| {
+                        for (k, group) in locals.chunks_mut(LANES).enumerate() {
+                            solve_group(task * GROUPS_PER_TASK + k, group);
+                        }
+                    },
+                );
             }
-            for (cell, local) in nodes.iter().zip(out.iter()) {
-                for (k, &n) in cell.iter().enumerate() {
-                    x[n as usize] = local[k];
+            // Back into the positions, a task's cells at a time: a colour's cells share no
+            // node, so no two tasks write the same one.
+            let to = Scatter::new(x);
+            let out = &out[..];
+            team::for_each(Tasks(nodes.len().div_ceil(SCATTER_CELLS)), |task, _| {
+                let cells = task * SCATTER_CELLS..((task + 1) * SCATTER_CELLS).min(nodes.len());
+                for (cell, local) in nodes[cells.clone()].iter().zip(&out[cells]) {
+                    for (k, &n) in cell.iter().enumerate() {
+                        // SAFETY: a node belongs to one cell of the colour (see above).
+                        #[allow(unsafe_code)]
+                        unsafe {
+                            to.set(n as usize, local[k])
+                        };
+                    }
                 }
-            }
+            });
         }
     }
 

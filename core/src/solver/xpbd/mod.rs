@@ -41,12 +41,12 @@ use super::diagnostics::StepStats;
 use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
+use super::team::{self, Chunks};
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet, PointGroups};
 use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
 use glue::Glue;
 use nalgebra::Vector3;
-use rayon::prelude::*;
 use restitution::Restitution;
 use std::ops::Range;
 
@@ -703,44 +703,43 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
     let nodes = &mut world.nodes;
     let mass = &nodes.mass[..];
     model.inv_mass.copy_from_slice(&nodes.inv_mass);
-    nodes
-        .position
-        .par_chunks_mut(PAR_CHUNK)
-        .zip(nodes.velocity.par_chunks_mut(PAR_CHUNK))
-        .zip(model.previous.par_chunks_mut(PAR_CHUNK))
-        .zip(model.shift.par_chunks_mut(PAR_CHUNK))
-        .zip(model.overlapping.par_chunks_mut(PAR_CHUNK))
-        .enumerate()
-        .for_each(|(chunk, ((((xs, vs), prev), shift), overlapping))| {
-            for j in 0..xs.len() {
-                let i = chunk * PAR_CHUNK + j;
-                prev[j] = xs[j];
-                let m = mass[i];
-                if m <= 0.0 {
-                    continue;
-                }
-                let mut f = V3::zeros();
-                if let Some((w, air)) = wind {
-                    f += w.force(air, vs[j], m);
-                }
-                vs[j] += (gravity + f / m) * dt;
-                if let Some(bf) = body_force {
-                    let kick = bf[i] * (dt / (m + layer_k * dt * dt));
-                    if bf[i] == V3::zeros() {
-                        overlapping[j] &= !first;
-                    } else if overlapping[j] {
-                        let moving = contact_kick(kick, vs[j]);
-                        vs[j] += moving;
-                        shift[j] = (kick - moving) * dt;
-                    } else {
-                        vs[j] += kick;
-                    }
-                } else {
-                    overlapping[j] &= !first;
-                }
-                xs[j] += vs[j] * dt;
+    let chunks = (
+        Chunks::new(&mut nodes.position, PAR_CHUNK),
+        Chunks::new(&mut nodes.velocity, PAR_CHUNK),
+        Chunks::new(&mut model.previous, PAR_CHUNK),
+        Chunks::new(&mut model.shift, PAR_CHUNK),
+        Chunks::new(&mut model.overlapping, PAR_CHUNK),
+    );
+    team::for_each(chunks, |chunk, (xs, vs, prev, shift, overlapping)| {
+        for j in 0..xs.len() {
+            let i = chunk * PAR_CHUNK + j;
+            prev[j] = xs[j];
+            let m = mass[i];
+            if m <= 0.0 {
+                continue;
             }
-        });
+            let mut f = V3::zeros();
+            if let Some((w, air)) = wind {
+                f += w.force(air, vs[j], m);
+            }
+            vs[j] += (gravity + f / m) * dt;
+            if let Some(bf) = body_force {
+                let kick = bf[i] * (dt / (m + layer_k * dt * dt));
+                if bf[i] == V3::zeros() {
+                    overlapping[j] &= !first;
+                } else if overlapping[j] {
+                    let moving = contact_kick(kick, vs[j]);
+                    vs[j] += moving;
+                    shift[j] = (kick - moving) * dt;
+                } else {
+                    vs[j] += kick;
+                }
+            } else {
+                overlapping[j] &= !first;
+            }
+            xs[j] += vs[j] * dt;
+        }
+    });
 }
 
 /// Fastest a body–body or collider contact may push apart a node that has been in contact
@@ -964,35 +963,33 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
     let inv_dt2 = 1.0 / (dt * dt);
     let (w, prev) = (&model.inv_mass[..], &model.previous[..]);
     let (mass, takes) = (&world.nodes.mass[..], &world.node_contact[..]);
-    world
-        .nodes
-        .position
-        .par_chunks_mut(PAR_CHUNK)
-        .zip(model.moved.par_chunks_mut(PAR_CHUNK))
-        .zip(model.contact_shift.par_chunks_mut(PAR_CHUNK))
-        .zip(model.chunk_contact.par_iter_mut())
-        .enumerate()
-        .for_each(|(chunk, (((xs, moved), shifts), sums))| {
-            let mut deepest = 0.0f64;
-            let mut force = V3::zeros();
-            let mut work = 0.0;
-            for (j, ((x, moved), shift)) in xs.iter_mut().zip(moved).zip(shifts).enumerate() {
-                let i = chunk * PAR_CHUNK + j;
-                if !takes[i] || w[i] <= 0.0 {
-                    continue;
-                }
-                let c = surfaces.resolve(*x, prev[i]);
-                if c.depth > 0.0 {
-                    *x += c.correction;
-                    *shift += c.correction;
-                    *moved = true;
-                    deepest = deepest.max(c.depth);
-                    force += c.from_capsules * (mass[i] * inv_dt2);
-                    work += c.capsule_work * (mass[i] * inv_dt2);
-                }
+    let chunks = (
+        Chunks::new(&mut world.nodes.position, PAR_CHUNK),
+        Chunks::new(&mut model.moved, PAR_CHUNK),
+        Chunks::new(&mut model.contact_shift, PAR_CHUNK),
+        Chunks::new(&mut model.chunk_contact, 1),
+    );
+    team::for_each(chunks, |chunk, (xs, moved, shifts, sums)| {
+        let mut deepest = 0.0f64;
+        let mut force = V3::zeros();
+        let mut work = 0.0;
+        for (j, ((x, moved), shift)) in xs.iter_mut().zip(moved).zip(shifts).enumerate() {
+            let i = chunk * PAR_CHUNK + j;
+            if !takes[i] || w[i] <= 0.0 {
+                continue;
             }
-            *sums = (deepest, force, work);
-        });
+            let c = surfaces.resolve(*x, prev[i]);
+            if c.depth > 0.0 {
+                *x += c.correction;
+                *shift += c.correction;
+                *moved = true;
+                deepest = deepest.max(c.depth);
+                force += c.from_capsules * (mass[i] * inv_dt2);
+                work += c.capsule_work * (mass[i] * inv_dt2);
+            }
+        }
+        sums[0] = (deepest, force, work);
+    });
     for &(deepest, force, work) in &model.chunk_contact {
         out.touched |= deepest > 0.0;
         out.max_depth = out.max_depth.max(deepest);
@@ -1092,18 +1089,14 @@ fn update_velocities(world: &mut World, model: &Model, dt: f64) {
     let nodes = &mut world.nodes;
     let (mass, prev) = (&nodes.mass[..], &model.previous[..]);
     let x = &nodes.position[..];
-    nodes
-        .velocity
-        .par_chunks_mut(PAR_CHUNK)
-        .enumerate()
-        .for_each(|(chunk, vs)| {
-            for (j, v) in vs.iter_mut().enumerate() {
-                let i = chunk * PAR_CHUNK + j;
-                if mass[i] > 0.0 {
-                    *v = (x[i] - prev[i]) * inv_dt;
-                }
+    team::for_each(Chunks::new(&mut nodes.velocity, PAR_CHUNK), |chunk, vs| {
+        for (j, v) in vs.iter_mut().enumerate() {
+            let i = chunk * PAR_CHUNK + j;
+            if mass[i] > 0.0 {
+                *v = (x[i] - prev[i]) * inv_dt;
             }
-        });
+        }
+    });
 }
 
 /// Stage 5b: every node pulled towards its body's rigid motion (momentum kept exactly).
