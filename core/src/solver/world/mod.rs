@@ -400,7 +400,7 @@ impl World {
     }
 
     /// The node count [`on_worker`] weighs against [`SERIAL_BELOW_NODES`]: an XPBD world counts
-    /// for twice its nodes (see [`XPBD_PARALLEL_WEIGHT`]).
+    /// for four times its nodes (see [`XPBD_PARALLEL_WEIGHT`]).
     fn parallel_size(&self) -> usize {
         match self.settings.integrator {
             Integrator::Xpbd => self.nodes.len() * XPBD_PARALLEL_WEIGHT,
@@ -414,14 +414,14 @@ impl World {
 /// another thread (measured: the 613-node demo bakes in 2.8 s on one thread, 3.3–3.7 s on two).
 const SERIAL_BELOW_NODES: usize = PAR_CHUNK;
 
-/// The XPBD step's colour passes share out a colour's cells sixteen four-cell groups at a
-/// time, so they pay for a second thread at fewer nodes than the papers' step: an XPBD world
-/// stays on one thread below half as many nodes (1024). Measured through the CLI, a Blender
-/// cube at 100 frames, best of three, 2 cores: 1331 nodes 1.37 s on one thread, 1.12 s on
-/// two; 2197 nodes 2.10 / 1.62 s; the 4096-node standard scene 3.78 / 2.88 s; 729 nodes
-/// 0.83 s either way. (Before the colours were shared out in small groups, one thread did
-/// a 16³ lattice's colours and the standard scene took 3.3 s on one thread, 3.6 s on two.)
-const XPBD_PARALLEL_WEIGHT: usize = 2;
+/// The XPBD step's passes run on a spinning team ([`super::team`]), a pass costing the second
+/// thread about a microsecond, so they pay for it at fewer nodes than the papers' step: an
+/// XPBD world takes two threads from 1024 nodes. Measured through the CLI (0.5 m rubber cube
+/// dropped 1 m, 100 frames, 2 cores, idle): 1331 nodes 0.84 s on one thread, 0.70–0.73 s on
+/// two; 729 nodes 0.45 s on one, 0.48 s on two (its node passes are one chunk, so only the
+/// cells' colours share out); the 4096-node standard scene 2.32–2.36 s on one, 2.04–2.05 s
+/// on two (2.75 s on two with the passes on rayon's pool).
+const XPBD_PARALLEL_WEIGHT: usize = 4;
 
 /// Run `f` (the steps of a world of `nodes` nodes) on a thread-pool worker. Called from any
 /// other thread, each parallel pass of a step would hand its work to the pool and wait for it
