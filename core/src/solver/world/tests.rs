@@ -318,12 +318,13 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
 }
 
 /// A world gets a thread per 2048 of its parallel size, at least one, at most what the pool
-/// has: the standard scene's 4096 XPBD nodes four threads, a 613-node demo one, a 64³ lattice
-/// every thread of a 16-core machine.
+/// has: the standard scene's 4096 XPBD nodes eight threads, a 1331-node cube two, a 613-node
+/// demo one, a 64³ lattice every thread of a 16-core machine.
 #[test]
 fn worlds_get_threads_by_their_size() {
     assert_eq!(threads_for(613 * XPBD_PARALLEL_WEIGHT, 16), 1);
-    assert_eq!(threads_for(4096 * XPBD_PARALLEL_WEIGHT, 16), 4);
+    assert_eq!(threads_for(1331 * XPBD_PARALLEL_WEIGHT, 2), 2);
+    assert_eq!(threads_for(4096 * XPBD_PARALLEL_WEIGHT, 16), 8);
     assert_eq!(threads_for(4096 * XPBD_PARALLEL_WEIGHT, 2), 2);
     assert_eq!(threads_for(65 * 65 * 65 * XPBD_PARALLEL_WEIGHT, 16), 16);
     assert_eq!(threads_for(10, 0), 1);
