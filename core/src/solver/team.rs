@@ -326,39 +326,50 @@ unsafe impl Parts for Tasks {
     unsafe fn part(&self, _: usize) {}
 }
 
-/// A slice whose elements tasks write at indices no two tasks of a pass share (a colour's
-/// cells' nodes): scattered writes, where [`Chunks`] hands out runs.
-pub(crate) struct Scatter<'a, T> {
+/// A slice that tasks read and write at indices no two tasks of a pass share (a colour's
+/// cells' nodes): scattered access, where [`Chunks`] hands out runs.
+pub(crate) struct Disjoint<'a, T> {
     ptr: *mut T,
     len: usize,
     _slice: PhantomData<&'a mut [T]>,
 }
 
-impl<'a, T: Send> Scatter<'a, T> {
+impl<'a, T: Copy + Send> Disjoint<'a, T> {
     pub(crate) fn new(slice: &'a mut [T]) -> Self {
-        Scatter {
+        Disjoint {
             ptr: slice.as_mut_ptr(),
             len: slice.len(),
             _slice: PhantomData,
         }
     }
 
+    /// The element at `i` (panics out of bounds).
+    ///
+    /// # Safety
+    /// No other task of the pass touches index `i`.
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn get(&self, i: usize) -> T {
+        assert!(i < self.len, "index {i} out of {}", self.len);
+        // SAFETY: in bounds; no other thread writes `i` (the caller's contract), and the slice
+        // is borrowed mutably for `'a`, so nothing else touches it meanwhile.
+        unsafe { self.ptr.add(i).read() }
+    }
+
     /// Write `value` at `i` (panics out of bounds).
     ///
     /// # Safety
-    /// No other task of the pass writes index `i`.
+    /// No other task of the pass touches index `i`.
     #[allow(unsafe_code)]
     pub(crate) unsafe fn set(&self, i: usize, value: T) {
-        assert!(i < self.len, "scatter index {i} out of {}", self.len);
-        // SAFETY: in bounds; no other thread touches `i` (the caller's contract), and the
-        // slice is borrowed mutably for `'a`, so nothing else reads it meanwhile.
+        assert!(i < self.len, "index {i} out of {}", self.len);
+        // SAFETY: as for `get`.
         unsafe { self.ptr.add(i).write(value) }
     }
 }
 
-// SAFETY: `Scatter` is a `&mut [T]` written at disjoint indices (see `set`).
+// SAFETY: `Disjoint` is a `&mut [T]` whose tasks touch disjoint indices (see `get`, `set`).
 #[allow(unsafe_code)]
-unsafe impl<T: Send> Sync for Scatter<'_, T> {}
+unsafe impl<T: Send> Sync for Disjoint<'_, T> {}
 
 macro_rules! tuple_parts {
     ($($p:ident $i:tt),+) => {

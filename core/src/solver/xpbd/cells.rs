@@ -37,7 +37,7 @@
 
 use super::lanes::{solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
-use crate::solver::team::{self, Chunks, Scatter, Tasks};
+use crate::solver::team::{self, Chunks, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -125,6 +125,9 @@ const GROUPS_PER_TASK: usize = 8;
 
 /// Cells a task of a colour's scatter writes back.
 const SCATTER_CELLS: usize = 128;
+
+/// Cells a task of a colour's barrier pass looks at.
+const BARRIER_CELLS: usize = 128;
 
 impl CellSet {
     /// Add one cell (in any order; [`Self::finish`] colours them). Degenerate cells are left
@@ -314,6 +317,17 @@ impl CellSet {
         groups
     }
 
+    /// The colour whose cells may share nodes (past [`MAX_COLOURS`]): solved one cell after
+    /// the other.
+    pub(crate) fn serial_colour(&self) -> Option<usize> {
+        self.serial_colour
+    }
+
+    /// How many colours the cells take.
+    pub(crate) fn colour_count(&self) -> usize {
+        self.colours.len()
+    }
+
     /// Whether some cells share nodes within their colour (more than [`MAX_COLOURS`] were
     /// needed) or are not lattice cubes: what a device solver does not run.
     pub(crate) fn all_coloured_cubes(&self) -> bool {
@@ -430,7 +444,7 @@ impl CellSet {
             }
             // Back into the positions, a task's cells at a time: a colour's cells share no
             // node, so no two tasks write the same one.
-            let to = Scatter::new(x);
+            let to = Disjoint::new(x);
             let out = &out[..];
             team::for_each(Tasks(nodes.len().div_ceil(SCATTER_CELLS)), |task, _| {
                 let cells = task * SCATTER_CELLS..((task + 1) * SCATTER_CELLS).min(nodes.len());
@@ -449,25 +463,44 @@ impl CellSet {
 
     /// Only the collapse barriers of the cells with a node the contacts moved (`moved`), after
     /// the contacts: they move a display-surface point's nodes by their weights and can
-    /// flatten the cell the point is in. Serial, in colour order (few cells).
+    /// flatten the cell the point is in. A colour at a time, its cells side by side on the team.
     pub(crate) fn solve_barriers(&self, x: &mut [V3], w: &[f64], moved: &[bool]) {
-        for (cell, &shape) in self.nodes.iter().zip(&self.shape) {
-            if !cell.iter().any(|&n| moved[n as usize]) {
-                continue;
-            }
-            let mut local = gather(cell, x);
-            let wl = cell.map(|n| w[n as usize]);
-            let unused = [1.0; 3];
-            solve_cell(
-                &mut local,
-                &wl,
-                shape,
-                (f64::INFINITY, f64::INFINITY),
-                &unused,
-            );
-            for (k, &n) in cell.iter().enumerate() {
-                x[n as usize] = local[k];
-            }
+        let xs = Disjoint::new(x);
+        for (colour, range) in self.colours.iter().enumerate() {
+            let per_task = if Some(colour) == self.serial_colour {
+                range.len().max(1)
+            } else {
+                BARRIER_CELLS
+            };
+            let cells = range.clone();
+            team::for_each(Tasks(range.len().div_ceil(per_task)), |task, ()| {
+                let start = cells.start + task * per_task;
+                for j in start..(start + per_task).min(cells.end) {
+                    let cell = &self.nodes[j];
+                    if !cell.iter().any(|&n| moved[n as usize]) {
+                        continue;
+                    }
+                    // SAFETY (`get`, `set`): a task's cells share no node with another task's
+                    // (one colour's cells share none; the serial colour is one task).
+                    #[allow(unsafe_code)]
+                    let mut local = cell.map(|n| unsafe { xs.get(n as usize) });
+                    let wl = cell.map(|n| w[n as usize]);
+                    let unused = [1.0; 3];
+                    solve_cell(
+                        &mut local,
+                        &wl,
+                        self.shape[j],
+                        (f64::INFINITY, f64::INFINITY),
+                        &unused,
+                    );
+                    for (k, &n) in cell.iter().enumerate() {
+                        #[allow(unsafe_code)]
+                        unsafe {
+                            xs.set(n as usize, local[k])
+                        };
+                    }
+                }
+            });
         }
     }
 

@@ -41,7 +41,7 @@ use super::diagnostics::StepStats;
 use super::integrator::{FrameAccumulator, Integrate};
 use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
-use super::team::{self, Chunks};
+use super::team::{self, Chunks, Disjoint};
 use super::{World, PAR_CHUNK};
 use cells::{CellInput, CellSet, PointGroups};
 use contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
@@ -134,6 +134,8 @@ pub(crate) struct Model {
     point_contact: Vec<(V3, f64, V3)>,
     /// The points `point_contact` holds a contact of.
     in_contact: Vec<u32>,
+    /// Per task of the points' pass by colour ([`contact_points_by_colour`]), what it found.
+    point_sums: Vec<PointSums>,
     /// The static colliders' grid candidates (scratch).
     collider_scratch: Vec<u32>,
     /// Per display-surface point: the collider and face normal it was put back onto in this
@@ -224,6 +226,7 @@ impl Model {
         cells.finish(n);
         let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
         let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
+        let point_tasks = point_tasks(&points, &cells);
         let visits = points
             .order
             .iter()
@@ -268,6 +271,7 @@ impl Model {
             rigid_scratch: RigidScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
             in_contact: Vec::new(),
+            point_sums: vec![PointSums::default(); point_tasks],
             collider_scratch: Vec::new(),
             collider_touch: vec![None; world.surface.len()],
             logged_once: false,
@@ -946,12 +950,25 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
 /// Stage 4b: contact with the floor, walls and capsules (nodes in parallel, display-surface
 /// points serially in point order).
 fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> StepOutput {
-    model.capsules.clear();
-    push_capsules(world, time, dt, &mut model.capsules);
+    let mut capsules = std::mem::take(&mut model.capsules);
+    capsules.clear();
+    push_capsules(world, time, dt, &mut capsules);
+    let out = rigid_contacts_with(world, model, &capsules, dt);
+    model.capsules = capsules;
+    out
+}
+
+/// [`rigid_contacts`] against the substep's `capsules`.
+fn rigid_contacts_with(
+    world: &mut World,
+    model: &mut Model,
+    capsules: &[(Capsule, Capsule)],
+    dt: f64,
+) -> StepOutput {
     let surfaces = Surfaces {
         planes: &world.settings.planes,
         friction: world.settings.layer.friction,
-        capsules: &model.capsules,
+        capsules,
     };
     let mut out = StepOutput::default();
     let bc = &mut world.body_contact;
@@ -1004,6 +1021,14 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         model.point_contact[i as usize] = (V3::zeros(), 0.0, V3::zeros());
     }
     model.in_contact.clear();
+    if !colliders {
+        let sums = contact_points_by_colour(x, model, &surfaces, inv_dt2);
+        out.touched |= sums.touched;
+        out.max_depth = out.max_depth.max(sums.deepest);
+        out.capsule_force += sums.force;
+        out.capsule_work += sums.work;
+        return out;
+    }
     for (&i, visit) in model.points.order.iter().zip(&model.visits) {
         let i = i as usize;
         if colliders {
@@ -1064,6 +1089,149 @@ fn rigid_contacts(world: &mut World, model: &mut Model, time: f64, dt: f64) -> S
         }
     }
     out
+}
+
+/// What a task of the points' pass found: whether a point touched, the deepest, and the
+/// capsules' force and work on its points.
+#[derive(Debug, Clone, Copy, Default)]
+struct PointSums {
+    touched: bool,
+    deepest: f64,
+    force: V3,
+    work: f64,
+}
+
+/// Cells' worth of points a task of the points' pass takes.
+const POINT_GROUPS_PER_TASK: usize = 16;
+
+/// How many groups of `groups` a task of colour `colour` takes: all of them where the points'
+/// cells may share nodes (the cells' serial colour, and the points in no cell, last).
+fn point_groups_per_task(colour: usize, groups: usize, cells: &CellSet) -> usize {
+    if Some(colour) == cells.serial_colour() || colour >= cells.colour_count() {
+        groups.max(1)
+    } else {
+        POINT_GROUPS_PER_TASK
+    }
+}
+
+/// Tasks of the points' pass by colour over all colours.
+fn point_tasks(points: &PointGroups, cells: &CellSet) -> usize {
+    points
+        .colours
+        .iter()
+        .enumerate()
+        .map(|(colour, groups)| {
+            let n = groups.len();
+            n.div_ceil(point_groups_per_task(colour, n, cells))
+        })
+        .sum()
+}
+
+/// The display-surface points' rigid contacts (no static colliders in the world), a colour
+/// at a time: the points of one cell move only that cell's nodes, and a colour's cells share
+/// none, so a colour's cells' points run side by side (on the [`team`]) and give what the
+/// visiting order gives one after the other. Each task sums its points' force and work, and
+/// the tasks' sums add up in order: the same bits on any thread count.
+fn contact_points_by_colour(
+    x: &mut [V3],
+    model: &mut Model,
+    surfaces: &Surfaces,
+    inv_dt2: f64,
+) -> PointSums {
+    let Model {
+        points,
+        visits,
+        inv_mass: w,
+        previous: prev,
+        contact_shift,
+        moved,
+        point_contact,
+        point_sums,
+        in_contact,
+        cells,
+        ..
+    } = model;
+    let (xs, shifts) = (Disjoint::new(x), Disjoint::new(contact_shift));
+    let (moved, logged) = (Disjoint::new(moved), Disjoint::new(point_contact));
+    let visit = |o: usize, sums: &mut PointSums| {
+        let v = &visits[o];
+        let (ids, weights) = (&v.nodes, &v.weights);
+        // SAFETY (every `get` and `set` below): a point moves only its cell's nodes and logs
+        // only itself, and the tasks of a pass take cells that share no node (see above).
+        #[allow(unsafe_code)]
+        let at = |n: u32| unsafe { xs.get(n as usize) };
+        if surfaces.beyond_reach(&at(ids[0]), v.reach) {
+            return;
+        }
+        let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
+        for c in 0..8 {
+            let n = ids[c] as usize;
+            p += at(ids[c]) * weights[c];
+            p_prev += prev[n] * weights[c];
+            denominator += weights[c] * weights[c] * w[n];
+        }
+        if denominator <= 0.0 {
+            return;
+        }
+        let c = surfaces.resolve(p, p_prev);
+        if c.depth <= 0.0 {
+            return;
+        }
+        sums.touched = true;
+        sums.deepest = sums.deepest.max(c.depth);
+        sums.force += c.from_capsules * (inv_dt2 / denominator);
+        sums.work += c.capsule_work * (inv_dt2 / denominator);
+        let i = points.order[o] as usize;
+        let log = (
+            c.correction * (inv_dt2 / denominator),
+            c.depth,
+            c.from_capsules * (inv_dt2 / denominator),
+        );
+        #[allow(unsafe_code)]
+        unsafe {
+            logged.set(i, log);
+            for k in 0..8 {
+                let n = ids[k] as usize;
+                let step = c.correction * (weights[k] * w[n] / denominator);
+                xs.set(n, xs.get(n) + step);
+                shifts.set(n, shifts.get(n) + step);
+                moved.set(n, true);
+            }
+        }
+    };
+    let mut slot = 0;
+    for (colour, range) in points.colours.iter().enumerate() {
+        let groups = &points.groups[range.start as usize..range.end as usize];
+        let per_task = point_groups_per_task(colour, groups.len(), cells);
+        let tasks = groups.len().div_ceil(per_task);
+        team::for_each(
+            Chunks::new(&mut point_sums[slot..slot + tasks], 1),
+            |t, sums| {
+                let mut found = PointSums::default();
+                let end = ((t + 1) * per_task).min(groups.len());
+                for group in &groups[t * per_task..end] {
+                    for o in group.start..group.end {
+                        visit(o as usize, &mut found);
+                    }
+                }
+                sums[0] = found;
+            },
+        );
+        slot += tasks;
+    }
+    let mut total = PointSums::default();
+    for s in &point_sums[..slot] {
+        total.touched |= s.touched;
+        total.deepest = total.deepest.max(s.deepest);
+        total.force += s.force;
+        total.work += s.work;
+    }
+    // The points in contact, for the next pass to clear.
+    if total.touched {
+        let touching = point_contact.iter().enumerate().filter(|(_, c)| c.1 > 0.0);
+        in_contact.extend(touching.map(|(i, _)| i as u32));
+    }
+    total
 }
 
 /// The capsules of the substep from `time` to `time + dt`, each at the substep's end and at
