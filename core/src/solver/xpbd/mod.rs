@@ -136,6 +136,9 @@ pub(crate) struct Model {
     in_contact: Vec<u32>,
     /// Per task of the points' pass by colour ([`contact_points_by_colour`]), what it found.
     point_sums: Vec<PointSums>,
+    /// The points that pass found touching, each task's from the start of its points' places
+    /// in the visiting order (scratch, one slot a point).
+    found: Vec<u32>,
     /// The static colliders' grid candidates (scratch).
     collider_scratch: Vec<u32>,
     /// Per display-surface point: the collider and face normal it was put back onto in this
@@ -272,6 +275,7 @@ impl Model {
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
             in_contact: Vec::new(),
             point_sums: vec![PointSums::default(); point_tasks],
+            found: vec![0; world.surface.len()],
             collider_scratch: Vec::new(),
             collider_touch: vec![None; world.surface.len()],
             logged_once: false,
@@ -1099,6 +1103,10 @@ struct PointSums {
     deepest: f64,
     force: V3,
     work: f64,
+    /// Where the task's points start in the visiting order, and how many of them touched
+    /// (listed in `Model::found` from there).
+    first: u32,
+    count: u32,
 }
 
 /// Cells' worth of points a task of the points' pass takes.
@@ -1148,11 +1156,13 @@ fn contact_points_by_colour(
         point_contact,
         point_sums,
         in_contact,
+        found,
         cells,
         ..
     } = model;
     let (xs, shifts) = (Disjoint::new(x), Disjoint::new(contact_shift));
     let (moved, logged) = (Disjoint::new(moved), Disjoint::new(point_contact));
+    let listed = Disjoint::new(found);
     let visit = |o: usize, sums: &mut PointSums| {
         let v = &visits[o];
         let (ids, weights) = (&v.nodes, &v.weights);
@@ -1189,6 +1199,9 @@ fn contact_points_by_colour(
         );
         #[allow(unsafe_code)]
         unsafe {
+            // A task lists its points from its first place in the visiting order on.
+            listed.set((sums.first + sums.count) as usize, i as u32);
+            sums.count += 1;
             logged.set(i, log);
             for k in 0..8 {
                 let n = ids[k] as usize;
@@ -1207,14 +1220,18 @@ fn contact_points_by_colour(
         team::for_each(
             Chunks::new(&mut point_sums[slot..slot + tasks], 1),
             |t, sums| {
-                let mut found = PointSums::default();
                 let end = ((t + 1) * per_task).min(groups.len());
-                for group in &groups[t * per_task..end] {
+                let groups = &groups[t * per_task..end];
+                let mut task = PointSums {
+                    first: groups.first().map_or(0, |g| g.start),
+                    ..PointSums::default()
+                };
+                for group in groups {
                     for o in group.start..group.end {
-                        visit(o as usize, &mut found);
+                        visit(o as usize, &mut task);
                     }
                 }
-                sums[0] = found;
+                sums[0] = task;
             },
         );
         slot += tasks;
@@ -1225,11 +1242,9 @@ fn contact_points_by_colour(
         total.deepest = total.deepest.max(s.deepest);
         total.force += s.force;
         total.work += s.work;
-    }
-    // The points in contact, for the next pass to clear.
-    if total.touched {
-        let touching = point_contact.iter().enumerate().filter(|(_, c)| c.1 > 0.0);
-        in_contact.extend(touching.map(|(i, _)| i as u32));
+        // The points in contact, for the next pass to clear.
+        let first = s.first as usize;
+        in_contact.extend_from_slice(&found[first..first + s.count as usize]);
     }
     total
 }
