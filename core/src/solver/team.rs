@@ -8,7 +8,9 @@
 //! as the pass itself: the standard scene ran slower on two threads than on one (2.54 against
 //! 2.19 s). rayon has no spin setting, and the lighter pools on crates.io (paralight, chili)
 //! wait on condition variables too, so this module keeps its own helpers: after a pass they
-//! spin for [`SPIN`] watching for the next one, and only then sleep on a condition variable.
+//! watch for the next one for [`SPIN`] (at full speed for [`HOT_SPINS`] checks, then giving
+//! the core to any other thread between checks: spinning alone made two bakes sharing two
+//! cores 50 % slower), and only then sleep on a condition variable.
 //!
 //! The caller takes part: a pass is `count` tasks claimed one at a time from a shared
 //! counter, by the caller and by whichever helpers are awake; the caller returns once every
@@ -32,6 +34,9 @@ use std::time::{Duration, Instant};
 /// contacts, takes about 40 µs), short enough that a helper of a world that stopped
 /// stepping gives its core back at once.
 const SPIN: Duration = Duration::from_micros(200);
+
+/// Checks an idle helper makes at full speed before it yields the core between checks.
+const HOT_SPINS: u32 = 256;
 
 /// One pass: `count` tasks of `run`, claimed in turn.
 struct Pass<'a> {
@@ -143,9 +148,15 @@ fn help(s: &'static Shared) {
         let started = Instant::now();
         let mut spins = 0u32;
         while s.epoch.load(SeqCst) == seen {
-            std::hint::spin_loop();
+            // A few hundred checks at full speed, then each check gives the core to any
+            // other thread that wants it (another bake on the same cores), then sleep.
+            if spins < HOT_SPINS {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
             spins = spins.wrapping_add(1);
-            if spins.is_multiple_of(64) && started.elapsed() > SPIN {
+            if spins.is_multiple_of(16) && started.elapsed() > SPIN {
                 let mut held = lock(&s.lock);
                 s.sleepers.fetch_add(1, SeqCst);
                 while s.epoch.load(SeqCst) == seen {
