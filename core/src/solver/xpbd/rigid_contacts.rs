@@ -1,0 +1,315 @@
+//! Stage 4b of the substep: contact with the rigid surfaces (floor, walls, capsules) and the
+//! static colliders. Nodes that take contact are projected in parallel chunks; the
+//! display-surface points a colour of cells at a time on the [`team`] (a colour's cells share
+//! no node), or one after the other in visiting order when the world has static colliders.
+//! The constraint math is [`super::contact`]'s; this module owns the passes over the points.
+
+use super::cells::{CellSet, PointGroups};
+use super::contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
+use super::{push_capsules, Model, StepOutput, V3};
+use crate::solver::manipulator::Capsule;
+use crate::solver::team::{self, Chunks, Disjoint};
+use crate::solver::{World, PAR_CHUNK};
+
+/// Stage 4b: contact with the floor, walls and capsules (nodes in parallel, display-surface
+/// points a colour at a time, or serially in point order with static colliders).
+pub(super) fn rigid_contacts(
+    world: &mut World,
+    model: &mut Model,
+    time: f64,
+    dt: f64,
+) -> StepOutput {
+    let mut capsules = std::mem::take(&mut model.capsules);
+    capsules.clear();
+    push_capsules(world, time, dt, &mut capsules);
+    let out = rigid_contacts_with(world, model, &capsules, dt);
+    model.capsules = capsules;
+    out
+}
+
+/// [`rigid_contacts`] against the substep's `capsules`.
+fn rigid_contacts_with(
+    world: &mut World,
+    model: &mut Model,
+    capsules: &[(Capsule, Capsule)],
+    dt: f64,
+) -> StepOutput {
+    let surfaces = Surfaces {
+        planes: &world.settings.planes,
+        friction: world.settings.layer.friction,
+        capsules,
+    };
+    let mut out = StepOutput::default();
+    let bc = &mut world.body_contact;
+    let colliders = bc.collider_constraints && !bc.colliders.is_empty();
+    if surfaces.planes.is_empty() && surfaces.capsules.is_empty() && !colliders {
+        return out;
+    }
+    model.contact_shifted = true;
+    let inv_dt2 = 1.0 / (dt * dt);
+    let (w, prev) = (&model.inv_mass[..], &model.previous[..]);
+    let (mass, takes) = (&world.nodes.mass[..], &world.node_contact[..]);
+    let chunks = (
+        Chunks::new(&mut world.nodes.position, PAR_CHUNK),
+        Chunks::new(&mut model.moved, PAR_CHUNK),
+        Chunks::new(&mut model.contact_shift, PAR_CHUNK),
+        Chunks::new(&mut model.chunk_contact, 1),
+    );
+    team::for_each(chunks, |chunk, (xs, moved, shifts, sums)| {
+        let mut deepest = 0.0f64;
+        let mut force = V3::zeros();
+        let mut work = 0.0;
+        for (j, ((x, moved), shift)) in xs.iter_mut().zip(moved).zip(shifts).enumerate() {
+            let i = chunk * PAR_CHUNK + j;
+            if !takes[i] || w[i] <= 0.0 {
+                continue;
+            }
+            let c = surfaces.resolve(*x, prev[i]);
+            if c.depth > 0.0 {
+                *x += c.correction;
+                *shift += c.correction;
+                *moved = true;
+                deepest = deepest.max(c.depth);
+                force += c.from_capsules * (mass[i] * inv_dt2);
+                work += c.capsule_work * (mass[i] * inv_dt2);
+            }
+        }
+        sums[0] = (deepest, force, work);
+    });
+    for &(deepest, force, work) in &model.chunk_contact {
+        out.touched |= deepest > 0.0;
+        out.max_depth = out.max_depth.max(deepest);
+        out.capsule_force += force;
+        out.capsule_work += work;
+    }
+    let x = &mut world.nodes.position;
+    let statics = &mut world.body_contact.colliders[..];
+    let behind = world.settings.layer.thickness_m;
+    model.logged_once = true;
+    for &i in &model.in_contact {
+        model.point_contact[i as usize] = (V3::zeros(), 0.0, V3::zeros());
+    }
+    model.in_contact.clear();
+    if !colliders {
+        let sums = contact_points_by_colour(x, model, &surfaces, inv_dt2);
+        out.touched |= sums.touched;
+        out.max_depth = out.max_depth.max(sums.deepest);
+        out.capsule_force += sums.force;
+        out.capsule_work += sums.work;
+        return out;
+    }
+    for (&i, visit) in model.points.order.iter().zip(&model.visits) {
+        let i = i as usize;
+        if colliders {
+            model.collider_touch[i] = None;
+        }
+        let (ids, weights) = (&visit.nodes, &visit.weights);
+        let near_surfaces = !surfaces.beyond_reach(&x[ids[0] as usize], visit.reach);
+        if !near_surfaces && !colliders {
+            continue;
+        }
+        let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
+        for c in 0..8 {
+            let n = ids[c] as usize;
+            p += x[n] * weights[c];
+            p_prev += prev[n] * weights[c];
+            denominator += weights[c] * weights[c] * w[n];
+        }
+        if denominator <= 0.0 {
+            continue;
+        }
+        let c = if near_surfaces {
+            surfaces.resolve(p, p_prev)
+        } else {
+            PointContact::default()
+        };
+        let held = if colliders {
+            let after = p + c.correction;
+            resolve_colliders(statics, p_prev, after, behind, &mut model.collider_scratch)
+        } else {
+            ColliderContact::default()
+        };
+        if c.depth <= 0.0 && held.depth <= 0.0 {
+            continue;
+        }
+        if colliders {
+            model.collider_touch[i] = held.deepest;
+        }
+        out.touched = true;
+        out.max_depth = out.max_depth.max(c.depth).max(held.depth);
+        if c.depth > 0.0 {
+            out.capsule_force += c.from_capsules * (inv_dt2 / denominator);
+            out.capsule_work += c.capsule_work * (inv_dt2 / denominator);
+            // The log reads the rigid surfaces' part (colliders log through the contact pass).
+            model.point_contact[i] = (
+                c.correction * (inv_dt2 / denominator),
+                c.depth,
+                c.from_capsules * (inv_dt2 / denominator),
+            );
+            model.in_contact.push(i as u32);
+        }
+        let correction = c.correction + held.correction;
+        for k in 0..8 {
+            let n = ids[k] as usize;
+            let step = correction * (weights[k] * w[n] / denominator);
+            x[n] += step;
+            model.contact_shift[n] += step;
+            model.moved[n] = true;
+        }
+    }
+    out
+}
+
+/// What a task of the points' pass found: whether a point touched, the deepest, and the
+/// capsules' force and work on its points.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct PointSums {
+    touched: bool,
+    deepest: f64,
+    force: V3,
+    work: f64,
+    /// Where the task's points start in the visiting order, and how many of them touched
+    /// (listed in `Model::found` from there).
+    first: u32,
+    count: u32,
+}
+
+/// Cells' worth of points a task of the points' pass takes.
+const POINT_GROUPS_PER_TASK: usize = 16;
+
+/// How many groups of `groups` a task of colour `colour` takes: all of them where the points'
+/// cells may share nodes (the cells' serial colour, and the points in no cell, last).
+fn point_groups_per_task(colour: usize, groups: usize, cells: &CellSet) -> usize {
+    if Some(colour) == cells.serial_colour() || colour >= cells.colour_count() {
+        groups.max(1)
+    } else {
+        POINT_GROUPS_PER_TASK
+    }
+}
+
+/// Tasks of the points' pass by colour over all colours.
+pub(super) fn point_tasks(points: &PointGroups, cells: &CellSet) -> usize {
+    points
+        .colours
+        .iter()
+        .enumerate()
+        .map(|(colour, groups)| {
+            let n = groups.len();
+            n.div_ceil(point_groups_per_task(colour, n, cells))
+        })
+        .sum()
+}
+
+/// The display-surface points' rigid contacts (no static colliders in the world), a colour
+/// at a time: the points of one cell move only that cell's nodes, and a colour's cells share
+/// none, so a colour's cells' points run side by side (on the [`team`]) and give what the
+/// visiting order gives one after the other. Each task sums its points' force and work, and
+/// the tasks' sums add up in order: the same bits on any thread count.
+fn contact_points_by_colour(
+    x: &mut [V3],
+    model: &mut Model,
+    surfaces: &Surfaces,
+    inv_dt2: f64,
+) -> PointSums {
+    let Model {
+        points,
+        visits,
+        inv_mass: w,
+        previous: prev,
+        contact_shift,
+        moved,
+        point_contact,
+        point_sums,
+        in_contact,
+        found,
+        cells,
+        ..
+    } = model;
+    let (xs, shifts) = (Disjoint::new(x), Disjoint::new(contact_shift));
+    let (moved, logged) = (Disjoint::new(moved), Disjoint::new(point_contact));
+    let listed = Disjoint::new(found);
+    let visit = |o: usize, sums: &mut PointSums| {
+        let v = &visits[o];
+        let (ids, weights) = (&v.nodes, &v.weights);
+        // SAFETY (every `get` and `set` below): a point moves only its cell's nodes and logs
+        // only itself, and the tasks of a pass take cells that share no node (see above).
+        #[allow(unsafe_code)]
+        let at = |n: u32| unsafe { xs.get(n as usize) };
+        if surfaces.beyond_reach(&at(ids[0]), v.reach) {
+            return;
+        }
+        let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
+        for c in 0..8 {
+            let n = ids[c] as usize;
+            p += at(ids[c]) * weights[c];
+            p_prev += prev[n] * weights[c];
+            denominator += weights[c] * weights[c] * w[n];
+        }
+        if denominator <= 0.0 {
+            return;
+        }
+        let c = surfaces.resolve(p, p_prev);
+        if c.depth <= 0.0 {
+            return;
+        }
+        sums.touched = true;
+        sums.deepest = sums.deepest.max(c.depth);
+        sums.force += c.from_capsules * (inv_dt2 / denominator);
+        sums.work += c.capsule_work * (inv_dt2 / denominator);
+        let i = points.order[o] as usize;
+        let log = (
+            c.correction * (inv_dt2 / denominator),
+            c.depth,
+            c.from_capsules * (inv_dt2 / denominator),
+        );
+        #[allow(unsafe_code)]
+        unsafe {
+            // A task lists its points from its first place in the visiting order on.
+            listed.set((sums.first + sums.count) as usize, i as u32);
+            sums.count += 1;
+            logged.set(i, log);
+            for k in 0..8 {
+                let n = ids[k] as usize;
+                let step = c.correction * (weights[k] * w[n] / denominator);
+                xs.set(n, xs.get(n) + step);
+                shifts.set(n, shifts.get(n) + step);
+                moved.set(n, true);
+            }
+        }
+    };
+    let mut slot = 0;
+    for (colour, range) in points.colours.iter().enumerate() {
+        let groups = &points.groups[range.start as usize..range.end as usize];
+        let per_task = point_groups_per_task(colour, groups.len(), cells);
+        let tasks = groups.len().div_ceil(per_task);
+        team::for_each(
+            Chunks::new(&mut point_sums[slot..slot + tasks], 1),
+            |t, sums| {
+                let end = ((t + 1) * per_task).min(groups.len());
+                let groups = &groups[t * per_task..end];
+                let mut task = PointSums {
+                    first: groups.first().map_or(0, |g| g.start),
+                    ..PointSums::default()
+                };
+                for group in groups {
+                    for o in group.start..group.end {
+                        visit(o as usize, &mut task);
+                    }
+                }
+                sums[0] = task;
+            },
+        );
+        slot += tasks;
+    }
+    let mut total = PointSums::default();
+    for s in &point_sums[..slot] {
+        total.touched |= s.touched;
+        total.deepest = total.deepest.max(s.deepest);
+        total.force += s.force;
+        total.work += s.work;
+        // The points in contact, for the next pass to clear.
+        let first = s.first as usize;
+        in_contact.extend_from_slice(&found[first..first + s.count as usize]);
+    }
+    total
+}
