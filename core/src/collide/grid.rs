@@ -27,6 +27,15 @@ pub struct BoxGrid {
     raw: Vec<(u32, Vector3<f64>, Vector3<f64>)>,
     fill: Vec<u32>,
     epoch: u32,
+    /// The most ids any build was told of (`stamp` grows to it at a query).
+    id_count: usize,
+}
+
+/// Which ids a query has reported already ([`BoxGrid::query_marked`]): a stamp per id.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct QueryMarks {
+    stamp: Vec<u32>,
+    epoch: u32,
 }
 
 impl BoxGrid {
@@ -110,9 +119,7 @@ impl BoxGrid {
         self.fill = fill;
         self.raw = raw;
         self.entries = kept;
-        if self.stamp.len() < id_count {
-            self.stamp.resize(id_count, 0);
-        }
+        self.id_count = self.id_count.max(id_count);
     }
 
     fn cell_of(&self, p: &Vector3<f64>) -> [usize; 3] {
@@ -133,6 +140,23 @@ impl BoxGrid {
     /// The ids of the boxes in the cells `[lo, hi]` overlaps, each once, into `out` (cleared
     /// first), in cell order.
     pub fn query(&mut self, lo: &Vector3<f64>, hi: &Vector3<f64>, out: &mut Vec<u32>) {
+        let mut marks = QueryMarks {
+            stamp: std::mem::take(&mut self.stamp),
+            epoch: self.epoch,
+        };
+        self.query_marked(lo, hi, out, &mut marks);
+        (self.stamp, self.epoch) = (marks.stamp, marks.epoch);
+    }
+
+    /// [`Self::query`] on a shared grid, deduplicating with the caller's `marks` (so several
+    /// threads can query one grid, each with its own marks): the same ids in the same order.
+    pub fn query_marked(
+        &self,
+        lo: &Vector3<f64>,
+        hi: &Vector3<f64>,
+        out: &mut Vec<u32>,
+        marks: &mut QueryMarks,
+    ) {
         out.clear();
         if self.starts.len() < 2 || self.items.is_empty() {
             return;
@@ -141,10 +165,13 @@ impl BoxGrid {
         if (0..3).any(|a| hi[a] < self.origin[a] || lo[a] > region_hi[a]) {
             return;
         }
-        self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 {
-            self.stamp.fill(0);
-            self.epoch = 1;
+        if marks.stamp.len() < self.id_count {
+            marks.stamp.resize(self.id_count, 0);
+        }
+        marks.epoch = marks.epoch.wrapping_add(1);
+        if marks.epoch == 0 {
+            marks.stamp.fill(0);
+            marks.epoch = 1;
         }
         let (c0, c1) = (self.cell_of(lo), self.cell_of(hi));
         for k in c0[2]..=c1[2] {
@@ -152,9 +179,9 @@ impl BoxGrid {
                 for i in c0[0]..=c1[0] {
                     let c = self.index([i, j, k]);
                     for &id in &self.items[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                        let s = &mut self.stamp[id as usize];
-                        if *s != self.epoch {
-                            *s = self.epoch;
+                        let s = &mut marks.stamp[id as usize];
+                        if *s != marks.epoch {
+                            *s = marks.epoch;
                             out.push(id);
                         }
                     }
@@ -225,6 +252,48 @@ mod tests {
             &mut out,
         );
         assert!(out.is_empty());
+    }
+
+    #[test]
+    fn a_query_with_its_own_marks_finds_the_same_ids_in_the_same_order() {
+        // Boxes of 0.3 m scattered over a 2 m cube (spanning several cells each); queries of
+        // all sizes, with the grid's marks and with two callers' own, interleaved.
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let boxes: Vec<(u32, Vector3<f64>, Vector3<f64>)> = (0..300)
+            .map(|i| {
+                let lo = Vector3::new(next(), next(), next()) * 2.0;
+                (i, lo, lo + Vector3::repeat(0.3))
+            })
+            .collect();
+        let mut g = BoxGrid::default();
+        g.build(
+            Vector3::zeros(),
+            Vector3::repeat(2.3),
+            0.2,
+            300,
+            boxes.into_iter(),
+        );
+        let (mut first, mut second) = (QueryMarks::default(), QueryMarks::default());
+        let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+        let mut found = 0;
+        for _ in 0..200 {
+            let lo = Vector3::new(next(), next(), next()) * 2.0;
+            let hi = lo + Vector3::repeat(next() * 0.8);
+            g.query(&lo, &hi, &mut a);
+            g.query_marked(&lo, &hi, &mut b, &mut first);
+            g.query_marked(&lo, &hi, &mut c, &mut second);
+            assert_eq!(a, b);
+            assert_eq!(a, c);
+            found += a.len();
+        }
+        // The queries found boxes (hundreds of ids in all), not only empty lists.
+        assert!(found > 1000, "{found}");
     }
 
     #[test]
