@@ -363,12 +363,7 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
                 w.add_collider(StaticCollider::new("table", &pc, &tc, 0.4).unwrap());
                 add_body(&mut w, "a", &pa, &ta, 4, &m, Vector3::new(3.0, 0.0, 0.0));
                 add_body(&mut w, "b", &pb, &tb, 4, &m, Vector3::new(-3.0, 0.0, 0.0));
-                let mut log = Vec::new();
-                for f in 2..=8 {
-                    w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
-                    log.extend(w.frame_contacts().iter().copied());
-                }
-                (w.nodes.clone(), log)
+                frames_with_contacts(&mut w, 8)
             })
     };
     let (one, log1) = run(1);
@@ -381,6 +376,65 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
         .any(|r| matches!(r.partner, ContactPartner::Collider(_))));
     assert_eq!(one, two);
     assert_eq!(log1, log2);
+}
+
+/// Four rubber boxes 1 cm apart in a square on the floor, pushed into each other, big enough
+/// (1372 nodes) for the world to take two threads: the contact pass's parallel parts (the
+/// meshes' and samples' upkeep, the lists' builds, the searches) give the same bits as one.
+#[test]
+fn a_pile_gives_the_same_bits_on_1_and_2_threads() {
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let m = Material::preset("rubber").unwrap();
+                let mut w = World::new(WorldSettings {
+                    gravity: Vector3::new(0.0, -9.81, 0.0),
+                    layer: WorldSettings::default_layer(0.2 / 6.0, &m, 0.4),
+                    planes: vec![springbake_core::solver::Plane {
+                        normal: Vector3::y(),
+                        offset: 0.0,
+                    }],
+                    integrator: springbake_core::solver::Integrator::Xpbd,
+                    ..WorldSettings::default()
+                });
+                for (i, (x, z)) in [(0.0, 0.0), (0.21, 0.0), (0.0, 0.21), (0.21, 0.21)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let (p, t) = box_mesh([x, 0.001, z], [x + 0.2, 0.201, z + 0.2]);
+                    let towards = |c: f64| if c > 0.1 { -0.5 } else { 0.5 };
+                    let push = Vector3::new(towards(x), 0.0, towards(z));
+                    add_body(&mut w, &format!("box{i}"), &p, &t, 6, &m, push);
+                }
+                frames_with_contacts(&mut w, 4)
+            })
+    };
+    let (one, log1) = run(1);
+    let (two, log2) = run(2);
+    assert!(log1
+        .iter()
+        .any(|r| matches!(r.partner, ContactPartner::Body(_))));
+    assert_eq!(one, two);
+    assert_eq!(log1, log2);
+}
+
+/// Frames 2 to `last` of `w` at 24 fps: the nodes at the end, and every frame's contacts.
+fn frames_with_contacts(
+    w: &mut World,
+    last: usize,
+) -> (
+    springbake_core::solver::NodeState,
+    Vec<springbake_core::solver::ContactRecord>,
+) {
+    let mut log = Vec::new();
+    for f in 2..=last {
+        w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        log.extend(w.frame_contacts().iter().copied());
+    }
+    (w.nodes.clone(), log)
 }
 
 /// A cube of side 0.2 centred at `centre`, turned 45° about `axis` (0: x, 1: y, 2: z).

@@ -58,7 +58,7 @@ pub(super) trait Faces {
 }
 
 /// A body's display triangles in the step (boxes, planes and speeds from
-/// [`BodyMesh::refresh`]).
+/// [`BodyMesh::refresh_all`]).
 pub(super) struct MeshFaces<'a>(pub &'a BodyMesh);
 
 impl Faces for MeshFaces<'_> {
@@ -281,6 +281,7 @@ impl FaceSearch {
                         normal: n,
                         depth: h - s_now,
                         velocity: faces.velocity(t, w),
+                        outside_by: 0.0,
                     };
                     self.crossing = Some((u, bound.order, hit));
                 }
@@ -298,6 +299,7 @@ impl FaceSearch {
                     normal: found.normal,
                     depth: found.depth,
                     velocity: vq,
+                    outside_by: found.outside_by(h),
                 };
                 self.near = Some((found, bound.order, hit));
             }
@@ -385,6 +387,16 @@ struct Near {
 }
 
 impl Near {
+    /// The distance of a contact in front of a face's interior (the point is outside the
+    /// face's body there), else 0 ([`FaceHit::outside_by`]).
+    fn outside_by(&self, h: f64) -> f64 {
+        if self.facing >= 1.0 && self.depth <= h {
+            self.distance
+        } else {
+            0.0
+        }
+    }
+
     /// Whether this contact beats `best`: nearer, or as near (within [`DISTANCE_TIE`]) and
     /// facing the point better, or the same in both and `earlier`. The face under a point
     /// that bulged past its rim, not the face beside it, gives the contact's normal.
@@ -409,12 +421,16 @@ struct FaceHit {
     normal: Vector3<f64>,
     depth: f64,
     velocity: Vector3<f64>,
+    /// How far the point lies in front of the face's interior (outside the partner), m; 0
+    /// when it is not known to be outside: behind the face, past its rim, or across it in
+    /// the step.
+    outside_by: f64,
 }
 
 /// One ordered pair's vertex–face search, prepared ([`begin_pair`]): body `a`'s samples
 /// against body `b`'s triangles (mesh `mesh`) inside `[lo, hi]`, with the pair's neighbour
-/// list taken out of the contact state and the listed faces' boxes and planes refreshed, so
-/// [`pair_contacts`] only reads the state and pairs can be searched side by side.
+/// list taken out of the contact state (built, if due, by [`search_pair`]), so the search
+/// only reads the state and pairs can be searched side by side.
 pub(super) struct PairSearch {
     pair: (usize, usize),
     mesh: usize,
@@ -424,49 +440,30 @@ pub(super) struct PairSearch {
     h: f64,
     dt: f64,
     behind: f64,
+    /// For a constrained pair, how far in front of a face a contact still acts (see
+    /// [`pair_contacts`]).
+    front: Option<f64>,
     list: neighbours::FaceList,
-}
-
-impl PairSearch {
-    /// How many samples it looks at (at most one contact each).
-    pub fn samples(&self) -> usize {
-        self.list.samples.len()
-    }
 }
 
 /// Prepare the vertex–face search of body `a`'s samples against body `b`'s triangles inside
 /// `[lo, hi]` (`flipped` when `(a, b)` is the pair the response runs for, the other way
-/// round); `None` when there is nothing to search.
+/// round); `None` when there is nothing to search. The samples and the mesh must be fresh in
+/// this step ([`super::prepare`]); the list may be left to build ([`search_pair`]).
 pub(super) fn begin_pair(
     bc: &mut BodyContact,
     input: &PassInput,
     (a, b): (usize, usize),
     flipped: bool,
-    lo: Vector3<f64>,
-    hi: Vector3<f64>,
+    (lo, hi): (Vector3<f64>, Vector3<f64>),
+    front: Option<f64>,
 ) -> Option<PairSearch> {
     let mb = bc.mesh_of[b]?;
     if bc.points[a].is_empty() {
         return None;
     }
     let h = input.layer.thickness_m;
-    bc.meshes[mb].update(input.nodes, bc.step);
-    bc.update_samples(input.surface, input.nodes, a);
-    let list = neighbours::take(bc, input, (a, b, mb), lo, hi);
-    // A list built in this step has refreshed its faces already; one that names the mesh's
-    // faces many times over refreshes them all, once.
-    let reused = list.built != bc.step;
-    if reused && list.faces.len() >= bc.meshes[mb].triangles.len() {
-        bc.meshes[mb].refresh_all();
-    } else if reused {
-        let mut start = 0;
-        for &(i, end) in &list.samples {
-            if sample_in(bc, i as usize, (&lo, &hi)).is_some() {
-                bc.meshes[mb].refresh(&list.faces[start as usize..end as usize]);
-            }
-            start = end;
-        }
-    }
+    let list = neighbours::take(bc, input, (a, b), lo, hi);
     Some(PairSearch {
         pair: (a, b),
         mesh: mb,
@@ -475,27 +472,62 @@ pub(super) fn begin_pair(
         h,
         dt: input.dt,
         behind: BEHIND_LAYERS * h,
+        front,
         list,
     })
 }
 
+/// Build the prepared search's list if it is to be built, then its vertex–face contacts in
+/// its samples' order into `out`. Reads the contact state only (pairs run side by side).
+pub(super) fn search_pair(
+    bc: &BodyContact,
+    surface: &SurfacePoints,
+    search: &mut PairSearch,
+    out: &mut Vec<Contact>,
+) {
+    let samples = bc.points[search.pair.0].clone();
+    neighbours::build(
+        &mut search.list,
+        &bc.meshes[search.mesh],
+        &bc.sample_x,
+        samples,
+    );
+    // Ranked lists never read the bounds scratch: it stays empty, unallocated.
+    pair_contacts(bc, surface, search, &mut Vec::new(), out);
+}
+
 /// The vertex–face contacts of a prepared search, in its samples' order, into `out`
 /// (`bounds` is scratch). Reads the contact state only.
+///
+/// **Samples left alone.** For a constrained pair a contact farther in front of its face
+/// than `front` is dropped ([`super::CONSTRAINT_FRONT`]). A search that finds a sample in
+/// front of a face's interior at distance `d` (outside the partner; the nearest face, so
+/// every face is as far) keeps `d`; each step takes from it how far both bodies' nodes moved
+/// since the last (a sample and a face point move no farther than their body's farthest
+/// node). While what is left exceeds `front` and the step's relative travel, every face is
+/// farther than that: the sample cannot have crossed one (it is still outside), and its
+/// contact would be dropped, so it is not searched. In a pile 1 cm apart, most of the sides'
+/// samples. A sample not looked at in a step (out of the pair's region, or the pair out of
+/// reach) starts over with a search.
 pub(super) fn pair_contacts(
     bc: &BodyContact,
     surface: &SurfacePoints,
-    search: &PairSearch,
+    search: &mut PairSearch,
     bounds: &mut Vec<Bound>,
     out: &mut Vec<Contact>,
 ) {
     let (lo, hi) = &search.bounds;
     let faces = MeshFaces(&bc.meshes[search.mesh]);
+    let list = &mut search.list;
+    list.outside_by.resize(list.samples.len(), 0.0);
+    let motion = bc.step_motion[search.pair.0] + bc.step_motion[search.pair.1];
     let mut start = 0;
-    for &(i, end) in &search.list.samples {
+    for (k, &(i, end)) in list.samples.iter().enumerate() {
         let start_of = start as usize;
-        let (i, candidates) = (i as usize, &search.list.faces[start_of..end as usize]);
+        let (i, candidates) = (i as usize, &list.faces[start_of..end as usize]);
         start = end;
         let Some((x, v)) = sample_in(bc, i, (lo, hi)) else {
+            list.outside_by[k] = 0.0;
             continue;
         };
         let probe = Probe {
@@ -506,11 +538,21 @@ pub(super) fn pair_contacts(
             behind: search.behind,
         };
         let ranked = Ranked {
-            lower: &search.list.lower[start_of..end as usize],
-            slack: search.list.slack,
+            lower: &list.lower[start_of..end as usize],
+            slack: list.slack,
             fastest: bc.max_speed[search.pair.1],
         };
-        if let Some(hit) = best_face(probe, candidates, &faces, bounds, Some(ranked)) {
+        if let Some(front) = search.front {
+            let travel = 2.0 * (v.norm() + ranked.fastest) * search.dt;
+            let left = list.outside_by[k] - motion;
+            if left > front.max(travel) + 1e-9 * search.h {
+                list.outside_by[k] = left;
+                continue;
+            }
+        }
+        let hit = best_face(probe, candidates, &faces, bounds, Some(ranked));
+        list.outside_by[k] = hit.as_ref().map_or(0.0, |hit| hit.outside_by);
+        if let Some(hit) = hit {
             out.push(Contact {
                 a: Feature::Point(i),
                 b: Feature::Face {
@@ -774,6 +816,7 @@ mod tests {
                             normal: n,
                             depth,
                             velocity,
+                            outside_by: 0.0,
                         };
                         crossing = Some((u, hit));
                     }
@@ -787,6 +830,7 @@ mod tests {
                         normal: found.normal,
                         depth: found.depth,
                         velocity: vq,
+                        outside_by: found.outside_by(h),
                     };
                     near = Some((found, hit));
                 }

@@ -4,9 +4,9 @@
 //!
 //! The grid holds each triangle's box grown by a margin and is rebuilt only once a vertex has
 //! moved farther than the margin since the last build (a resting or slowly moving body keeps
-//! it for many steps); a triangle's box and plane are computed in the step only when a query
-//! finds it ([`BodyMesh::refresh`]). In a pile of 60 boxes, rebuilding every mesh's grid and
-//! every triangle's plane each step was a third of the whole bake.
+//! it for many steps). In a pile of 60 boxes, rebuilding every mesh's grid each step was a
+//! large part of the bake. The triangles' boxes and planes are computed once a step for the
+//! meshes some pair's search reads, meshes side by side ([`super::prepare`]).
 
 use super::*;
 
@@ -154,16 +154,7 @@ impl BodyMesh {
             .build(lo, hi, self.mean_edge, self.triangles.len(), boxes);
     }
 
-    /// Triangles `candidates`' boxes, planes and speeds in this step (each computed once a
-    /// step, when a query first finds it).
-    pub fn refresh(&mut self, candidates: &[u32]) {
-        for &t in candidates {
-            self.refresh_face(t as usize);
-        }
-    }
-
-    /// Every triangle's box, plane and speed in this step (cheaper than [`Self::refresh`]
-    /// over lists that name the mesh's faces many times over).
+    /// Every triangle's box, plane and speed in this step.
     pub fn refresh_all(&mut self) {
         for t in 0..self.triangles.len() {
             self.refresh_face(t);

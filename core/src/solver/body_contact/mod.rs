@@ -46,6 +46,7 @@
 
 use super::contact::{layer_force, ContactLayer};
 use super::contact_log::{observe_rigid, ContactLog, ContactPartner, RigidScene};
+use super::team::{self, Chunks};
 use super::world::{BodyHandle, BodyInfo, SurfacePoints};
 use super::{NodeState, World};
 use crate::collide::geometry::{
@@ -55,7 +56,6 @@ use crate::collide::{BoxGrid, StaticCollider};
 use crate::hertz::{self, SurfaceEdge, SurfaceRadius};
 use crate::lattice::{Embedding, Lattice};
 use nalgebra::{Point3, Vector3};
-use rayon::prelude::*;
 use std::ops::Range;
 
 /// How bodies push on each other and on static colliders.
@@ -74,6 +74,18 @@ pub enum ContactModel {
 /// stack of cubes dropped a centimetre kept jittering at 6 cm/s (rim samples met their
 /// partner's faces at a narrower blend, [`detect`]'s `RIM_BLEND`).
 const CONSTRAINT_REACH: f64 = 0.75;
+
+/// How near (in layer thicknesses) a sample in front of its partner's face must be for its
+/// contact to become a constraint of the substep, beyond the pair's relative travel in it
+/// (twice [`BodyContact::sweep`]): the gap the constraint keeps
+/// (`xpbd::bodies::REST_GAP_LAYERS`, 0.1) and as much again and half for what the
+/// substep's solve may move the surfaces besides. A contact farther out cannot reach the gap
+/// in the substep, so its constraint would do nothing: in a pile with 1 cm gaps at 3 cells a
+/// body, four in five contacts the search finds are such (the sides of neighbouring cubes).
+/// It is neither a constraint nor in the contact log (the surfaces do not touch), and a
+/// sample known to be outside that stays farther than this from every face is not searched
+/// ([`detect`]'s `pair_contacts`).
+const CONSTRAINT_FRONT: f64 = 0.25;
 
 /// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
 /// in the step: deeper, the layer has already failed; the search reaches this far.
@@ -125,6 +137,7 @@ mod detect;
 mod mesh;
 mod neighbours;
 pub(crate) mod overlap;
+mod prepare;
 pub(crate) use constraint::BodyConstraint;
 use detect::*;
 use mesh::{refine, BodyMesh};
@@ -166,6 +179,10 @@ pub struct BodyContact {
     max_speed: Vec<f64>,
     mean_velocity: Vec<Vector3<f64>>,
     spread_speed: Vec<f64>,
+    /// Per body: its farthest node's move since the last pass, m (infinite at the first),
+    /// from the node positions then (`last_position`, per node).
+    step_motion: Vec<f64>,
+    last_position: Vec<Vector3<f64>>,
     points: Vec<Range<usize>>,
     mass_per_share: Vec<f64>,
     mass: Vec<f64>,
@@ -181,10 +198,17 @@ pub struct BodyContact {
     sample_x: Vec<Vector3<f64>>,
     sample_v: Vec<Vector3<f64>>,
     sample_stamp: Vec<u64>,
+    /// Scratch of [`prepare`]: per mesh, whether a search reads it in this step; per body,
+    /// whether its samples are computed there.
+    mesh_needed: Vec<bool>,
+    sampled: Vec<bool>,
     /// The samples' candidate faces per pair of bodies (kept across steps).
     neighbours: neighbours::Neighbours,
     /// Rebuild every pair's neighbour lists each step (for tests: the grid search alone).
     pub(crate) lists_off: bool,
+    /// Keep every contact of a constrained pair as a constraint, however far in front (for
+    /// tests: leaving out the ones beyond [`CONSTRAINT_FRONT`] changes nothing).
+    pub(crate) front_off: bool,
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
@@ -288,6 +312,8 @@ impl BodyContact {
         self.max_speed = vec![0.0; bodies.len()];
         self.mean_velocity = vec![Vector3::zeros(); bodies.len()];
         self.spread_speed = vec![0.0; bodies.len()];
+        self.step_motion = vec![f64::INFINITY; bodies.len()];
+        self.last_position.clear();
         self.sample_x = vec![Vector3::zeros(); surface.len()];
         self.sample_v = vec![Vector3::zeros(); surface.len()];
         self.sample_stamp = vec![0; bodies.len()];
@@ -440,19 +466,25 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             }
         }
         bc.boxes[b] = (lo, hi);
+        bc.step_motion[b] = farthest_move(
+            &nodes.position[info.nodes.clone()],
+            bc.last_position.get(info.nodes.clone()),
+        );
         bc.max_speed[b] = speed2.sqrt();
         bc.mean_velocity[b] = mean_v;
         bc.spread_speed[b] = spread2.sqrt();
     }
+    bc.last_position.clear();
+    bc.last_position.extend_from_slice(&nodes.position);
     let n_bodies = bodies.len();
-    let searches = begin_searches(bc, input);
-    let found = search_pairs(bc, input.surface, &searches);
-    let mut next = searches.into_iter().zip(found).peekable();
+    let mut searches = begin_searches(bc, input);
+    search_pairs(bc, input.surface, &mut searches);
+    let mut next = searches.into_iter().peekable();
     for a in 0..n_bodies {
         for b in a + 1..n_bodies {
             bc.contacts.clear();
-            if let Some((pair, contacts)) = next.next_if(|(p, _)| (p.a, p.b) == (a, b)) {
-                bc.contacts.extend(contacts);
+            if let Some(pair) = next.next_if(|p| (p.a, p.b) == (a, b)) {
+                bc.contacts.extend(pair.found);
                 for search in pair.searches.into_iter().flatten() {
                     detect::end_pair(bc, search);
                 }
@@ -465,6 +497,11 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
                     ..*input
                 };
                 detect_edges(bc, &pass, a, b, pair.lo, pair.hi);
+                if let Some(front) = pair.front {
+                    // Contacts found deeper than this can reach the constraint's gap.
+                    let least = pair.h - front;
+                    bc.contacts.retain(|c| c.depth > least);
+                }
             }
             respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
         }
@@ -494,6 +531,23 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     }
 }
 
+/// The farthest any of `positions` lies from where it was (`last`), m; infinite when not
+/// known (no last positions, or a NaN).
+fn farthest_move(positions: &[Vector3<f64>], last: Option<&[Vector3<f64>]>) -> f64 {
+    let Some(last) = last else {
+        return f64::INFINITY;
+    };
+    let mut farthest: f64 = 0.0;
+    for (x, l) in positions.iter().zip(last) {
+        let d = (x - l).norm_squared();
+        if d.is_nan() {
+            return f64::INFINITY;
+        }
+        farthest = farthest.max(d);
+    }
+    farthest.sqrt()
+}
+
 /// The vertex–face searches of one pair of bodies `a < b` that may touch: `a`'s samples
 /// against `b`'s faces and the other way round, within `[lo, hi]`, at layer thickness `h`
 /// (thinner for pairs whose contacts are constraints, see [`CONSTRAINT_REACH`]).
@@ -503,7 +557,11 @@ struct PairSearches {
     lo: Vector3<f64>,
     hi: Vector3<f64>,
     h: f64,
+    /// For a constrained pair: how far in front of a face a contact may be and still act in
+    /// the substep ([`CONSTRAINT_FRONT`]).
+    front: Option<f64>,
     searches: [Option<detect::PairSearch>; 2],
+    found: Vec<Contact>,
 }
 
 /// Broad phase: the pairs of bodies whose boxes come within reach of each other (a contact
@@ -511,6 +569,46 @@ struct PairSearches {
 /// boxes farther apart than that, with both moving at their fastest node, cannot touch), in
 /// pair order, each with its searches prepared.
 fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> {
+    let h = input.layer.thickness_m;
+    let pairs = pairs_in_reach(bc, input);
+    prepare::surfaces_in_reach(bc, input, &pairs);
+    let mut out = Vec::with_capacity(pairs.len());
+    for (a, b, lo, hi) in pairs {
+        // Constraints need contacts only a little ahead of the gap they keep: a thinner
+        // reach looks at a quarter of the faces around a resting sample. The first pass
+        // looks a whole layer deep for parts inside each other.
+        let thin = bc.step > 1 && bc.constrains(a, b);
+        let layer = ContactLayer {
+            thickness_m: if thin { h * CONSTRAINT_REACH } else { h },
+            ..*input.layer
+        };
+        let pass = PassInput {
+            layer: &layer,
+            ..*input
+        };
+        let front = (bc.constrains(a, b) && !bc.front_off)
+            .then(|| CONSTRAINT_FRONT * h + 2.0 * bc.sweep(a, b, input.dt));
+        let searches = [
+            detect::begin_pair(bc, &pass, (a, b), false, (lo, hi), front),
+            detect::begin_pair(bc, &pass, (b, a), true, (lo, hi), front),
+        ];
+        out.push(PairSearches {
+            a,
+            b,
+            lo,
+            hi,
+            h: layer.thickness_m,
+            front,
+            searches,
+            found: Vec::new(),
+        });
+    }
+    out
+}
+
+/// The pairs of bodies `a < b` with faces whose boxes come within reach (see
+/// [`begin_searches`]), with the region `[lo, hi]` their searches look in.
+fn pairs_in_reach(bc: &BodyContact, input: &PassInput) -> Vec<prepare::PairInReach> {
     let h = input.layer.thickness_m;
     let reach = h.max(BEHIND_LAYERS * h);
     let n_bodies = input.bodies.len();
@@ -529,57 +627,26 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
                 || (0..3).any(|k| lo[k] > hi[k])
                 || bc.ignored_pairs.contains(&(a, b));
             let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
-            if apart || !has_faces {
-                continue;
+            if !apart && has_faces {
+                out.push((a, b, lo, hi));
             }
-            // Constraints need contacts only a little ahead of the gap they keep: a thinner
-            // reach looks at a quarter of the faces around a resting sample. The first pass
-            // looks a whole layer deep for parts inside each other.
-            let thin = bc.step > 1 && bc.constrains(a, b);
-            let layer = ContactLayer {
-                thickness_m: if thin { h * CONSTRAINT_REACH } else { h },
-                ..*input.layer
-            };
-            let pass = PassInput {
-                layer: &layer,
-                ..*input
-            };
-            let searches = [
-                detect::begin_pair(bc, &pass, (a, b), false, lo, hi),
-                detect::begin_pair(bc, &pass, (b, a), true, lo, hi),
-            ];
-            out.push(PairSearches {
-                a,
-                b,
-                lo,
-                hi,
-                h: layer.thickness_m,
-                searches,
-            });
         }
     }
     out
 }
 
-/// The vertex–face contacts of each pair's searches (`a`'s samples first), pairs side by
-/// side: each search only reads the contact state and yields its contacts in its samples'
-/// order, so the result is the same on any thread count.
-fn search_pairs(
-    bc: &BodyContact,
-    surface: &SurfacePoints,
-    pairs: &[PairSearches],
-) -> Vec<Vec<Contact>> {
-    pairs
-        .par_iter()
-        .map_init(Vec::new, |bounds, pair| {
-            let searches = pair.searches.iter().flatten();
-            let mut out = Vec::with_capacity(searches.map(detect::PairSearch::samples).sum());
-            for search in pair.searches.iter().flatten() {
-                detect::pair_contacts(bc, surface, search, bounds, &mut out);
-            }
-            out
-        })
-        .collect()
+/// The vertex–face contacts of each pair's searches (`a`'s samples first) into its `found`,
+/// pairs side by side on the world's team: each search builds its own list if due and only
+/// reads the contact state, and yields its contacts in its samples' order, so the result is
+/// the same on any thread count.
+fn search_pairs(bc: &BodyContact, surface: &SurfacePoints, pairs: &mut [PairSearches]) {
+    team::for_each(Chunks::new(pairs, 1), |_, pair| {
+        let pair = &mut pair[0];
+        pair.found.clear();
+        for search in pair.searches.iter_mut().flatten() {
+            detect::search_pair(bc, surface, search, &mut pair.found);
+        }
+    });
 }
 
 /// Add force `f` acting at `feature` to the nodes.

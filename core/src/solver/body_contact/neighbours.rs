@@ -34,6 +34,7 @@
 //! `BodyContact::sweep`).
 
 use super::*;
+use crate::collide::grid::QueryMarks;
 use std::collections::HashMap;
 
 /// The skin, in search reaches (a layer thickness): a longer list against fewer rebuilds.
@@ -114,6 +115,24 @@ pub(super) struct FaceList {
     /// How far the sample and the faces may have moved since the list was built, in the
     /// step it was last taken for, m (0 when built in that step).
     pub slack: f64,
+    /// Per sample: how far outside the partner it is at least, m, as its last search found
+    /// it less how far things moved since (see [`super::detect::pair_contacts`]); 0 when not
+    /// known, cleared when the list is built or missed a step.
+    pub outside_by: Vec<f64>,
+    /// Set by [`take`] when the list is to be built in this step ([`build`]).
+    pending: Option<Pending>,
+    /// Scratch of [`build`]: the grid query's marks and candidates, the ranked faces.
+    marks: QueryMarks,
+    candidates: Vec<u32>,
+    ranked: Vec<(f64, u32)>,
+}
+
+/// What [`build`] needs of a list [`take`] decided to rebuild: the pair's region grown by
+/// the skin (samples outside it get no faces) and the range of faces kept, m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pending {
+    wide: (Vector3<f64>, Vector3<f64>),
+    range: f64,
 }
 
 impl Neighbours {
@@ -159,14 +178,14 @@ impl Neighbours {
     }
 }
 
-/// Body `a`'s samples against body `b`'s mesh `mb` in this step: the pair's list, taken out
+/// Body `a`'s samples against body `b`'s mesh in this step: the pair's list, taken out
 /// of the table (give it back with [`put_back`]) and rebuilt when the bodies have moved too
-/// far for it (module docs). Samples must be up to date (`update_samples`), the mesh too
+/// far for it (module docs), or marked to be built ([`build`]). Samples must be up to date (`update_samples`), the mesh too
 /// (`BodyMesh::update`). `[lo, hi]` is the pair's region.
 pub(super) fn take(
     bc: &mut BodyContact,
     input: &PassInput,
-    (a, b, mb): (usize, usize, usize),
+    (a, b): (usize, usize),
     lo: Vector3<f64>,
     hi: Vector3<f64>,
 ) -> FaceList {
@@ -196,6 +215,10 @@ pub(super) fn take(
         && list.used > 0
         && !bc.lists_off
         && moved + sweep <= list.skin;
+    if list.used + 1 != step {
+        // Not looked at in the last step: how far things moved since is not known.
+        list.outside_by.fill(0.0);
+    }
     list.used = step;
     if fresh {
         list.slack = moved;
@@ -231,24 +254,49 @@ pub(super) fn take(
     list.drift_at_build = drift_a + drift_b;
     list.offset_at_build = shift_a - shift_b;
     list.skin = skin;
+    list.pending = Some(Pending {
+        wide: (lo.add_scalar(-skin), hi.add_scalar(skin)),
+        range: reach + skin,
+    });
+    list
+}
+
+/// Build `list` if [`take`] left it to be built: body `a`'s samples (`samples` of the
+/// step's `sample_x`) against `mesh`, each with the faces whose distance bound lies within
+/// the list's range, nearest first. The mesh's faces must be fresh in this step
+/// ([`BodyMesh::refresh_all`]); reads nothing else, so the pairs' lists build side by side.
+pub(super) fn build(
+    list: &mut FaceList,
+    mesh: &BodyMesh,
+    sample_x: &[Vector3<f64>],
+    samples: Range<usize>,
+) {
+    let Some(Pending {
+        wide: (wide_lo, wide_hi),
+        range,
+    }) = list.pending.take()
+    else {
+        return;
+    };
     list.samples.clear();
     list.faces.clear();
     list.lower.clear();
-    let mut ranked: Vec<(f64, u32)> = Vec::new();
-    let (wide_lo, wide_hi) = (lo.add_scalar(-skin), hi.add_scalar(skin));
-    let mesh = &mut bc.meshes[mb];
-    let range = reach + skin;
-    for i in bc.points[a].clone() {
-        let x = bc.sample_x[i];
+    list.outside_by.clear();
+    let faces = MeshFaces(mesh);
+    let (mut candidates, mut ranked) = (
+        std::mem::take(&mut list.candidates),
+        std::mem::take(&mut list.ranked),
+    );
+    for i in samples {
+        let x = sample_x[i];
         if (0..3).any(|k| x[k] < wide_lo[k] || x[k] > wide_hi[k]) {
             continue;
         }
         let (qlo, qhi) = (x.add_scalar(-range), x.add_scalar(range));
-        mesh.grid.query(&qlo, &qhi, &mut bc.candidates);
-        mesh.refresh(&bc.candidates);
-        let faces = MeshFaces(mesh);
+        mesh.grid
+            .query_marked(&qlo, &qhi, &mut candidates, &mut list.marks);
         ranked.clear();
-        ranked.extend(bc.candidates.iter().filter_map(|&t| {
+        ranked.extend(candidates.iter().filter_map(|&t| {
             let bound = faces.distance_bound(t as usize, &x);
             (bound <= range).then_some((bound, t))
         }));
@@ -261,7 +309,7 @@ pub(super) fn take(
         list.lower.extend(ranked.iter().map(|&(bound, _)| bound));
         list.samples.push((i as u32, list.faces.len() as u32));
     }
-    list
+    (list.candidates, list.ranked) = (candidates, ranked);
 }
 
 /// Return the list of `a`'s samples against `b` to the table.

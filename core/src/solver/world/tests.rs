@@ -317,6 +317,57 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
     assert!(touched > 200, "{touched} steps in contact");
 }
 
+#[test]
+fn contacts_left_out_in_front_would_not_have_acted() {
+    // A 3 × 2 pile of rubber boxes 1 cm apart side by side, its upper layer 1 cm above the
+    // lower, dropped onto the floor from 5 cm: the sides' samples find their neighbours'
+    // faces within the constraints' reach all the way down. Stepped with the contacts beyond
+    // `CONSTRAINT_FRONT` left out and with every one kept as a constraint: the same bits.
+    let m = Material::preset("rubber").unwrap();
+    let settings = WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(0.2 / 3.0, &m, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    };
+    let mut kept = World::new(settings);
+    for (i, layer) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)] {
+        let x = i as f64 * 0.21;
+        let y = 0.05 + layer as f64 * 0.21;
+        let (p, t) = box_mesh([x, y, 0.0], [x + 0.2, y + 0.2, 0.2]);
+        let settings = FitSettings {
+            resolution: Resolution::CellsAlongLongest(3),
+            ..FitSettings::default()
+        };
+        let lattice = fit_lattice(&p, &t, &settings).unwrap();
+        let body = kept.add_lattice_body(format!("box{i}_{layer}"), &lattice, &m, Vector3::zeros());
+        let (samples, areas) = crate::lattice::surface_samples(&p, &t, 0.5 * lattice.cell_size);
+        kept.add_contact_surface(body, &lattice, &samples, &areas);
+        kept.add_collision_surface(body, &lattice, &p, &t);
+    }
+    let mut all = kept.clone();
+    all.body_contact.front_off = true;
+    let dt = kept.choose_substeps(1.0 / 24.0).dt;
+    let (mut fewer, mut touched) = (0, 0);
+    for _ in 0..720 {
+        kept.step(dt);
+        all.step(dt);
+        let (left, every) = (
+            kept.body_contact.constraints().0.len(),
+            all.body_contact.constraints().0.len(),
+        );
+        fewer += usize::from(left < every);
+        touched += usize::from(kept.body_contact.touches_others() && left > 0);
+        assert_eq!(kept.nodes.position, all.nodes.position);
+    }
+    // Most steps left contacts out, and the boxes met.
+    assert!(fewer > 600, "{fewer} steps with fewer constraints");
+    assert!(touched > 100, "{touched} steps with constraints");
+}
+
 /// A world gets a thread per 2048 of its parallel size, at least one, at most what the pool
 /// has: the standard scene's 4096 XPBD nodes eight threads, a 1331-node cube two, a 613-node
 /// demo one, a 64³ lattice every thread of a 16-core machine.
