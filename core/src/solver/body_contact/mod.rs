@@ -132,6 +132,7 @@ struct Contact {
     flipped: bool,
 }
 
+mod broad;
 mod constraint;
 mod detect;
 mod mesh;
@@ -479,32 +480,32 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     let n_bodies = bodies.len();
     let mut searches = begin_searches(bc, input);
     search_pairs(bc, input.surface, &mut searches);
-    let mut next = searches.into_iter().peekable();
-    for a in 0..n_bodies {
-        for b in a + 1..n_bodies {
-            bc.contacts.clear();
-            if let Some(pair) = next.next_if(|p| (p.a, p.b) == (a, b)) {
-                bc.contacts.extend(pair.found);
-                for search in pair.searches.into_iter().flatten() {
-                    detect::end_pair(bc, search);
-                }
-                let layer = ContactLayer {
-                    thickness_m: pair.h,
-                    ..*layer
-                };
-                let pass = PassInput {
-                    layer: &layer,
-                    ..*input
-                };
-                detect_edges(bc, &pass, a, b, pair.lo, pair.hi);
-                if let Some(front) = pair.front {
-                    // Contacts found deeper than this can reach the constraint's gap.
-                    let least = pair.h - front;
-                    bc.contacts.retain(|c| c.depth > least);
-                }
-            }
-            respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
+    // Hertz's episodes end for the pairs out of reach (the others' end in `respond`).
+    if bc.model == ContactModel::Hertz {
+        end_hertz_episodes(bc, &searches);
+    }
+    for pair in searches {
+        let (a, b) = (pair.a, pair.b);
+        bc.contacts.clear();
+        bc.contacts.extend(pair.found);
+        for search in pair.searches.into_iter().flatten() {
+            detect::end_pair(bc, search);
         }
+        let pair_layer = ContactLayer {
+            thickness_m: pair.h,
+            ..*layer
+        };
+        let pass = PassInput {
+            layer: &pair_layer,
+            ..*input
+        };
+        detect_edges(bc, &pass, a, b, pair.lo, pair.hi);
+        if let Some(front) = pair.front {
+            // Contacts found deeper than this can reach the constraint's gap.
+            let least = pair.h - front;
+            bc.contacts.retain(|c| c.depth > least);
+        }
+        respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
     }
     for a in 0..n_bodies {
         for c in 0..bc.colliders.len() {
@@ -527,6 +528,22 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
                 collider_layer,
                 dt,
             );
+        }
+    }
+}
+
+/// Forget Hertz's `n2` of the body pairs `a < b` that are not among `searched` (out of
+/// reach in this step: no contacts).
+fn end_hertz_episodes(bc: &mut BodyContact, searched: &[PairSearches]) {
+    let (n_bodies, slots) = (bc.boxes.len(), bc.partner_slots());
+    let mut next = searched.iter().peekable();
+    for a in 0..n_bodies {
+        for b in a + 1..n_bodies {
+            if next.next_if(|p| (p.a, p.b) == (a, b)).is_none() {
+                if let Some(n2) = bc.hertz_n2.get_mut(a * slots + b) {
+                    *n2 = None;
+                }
+            }
         }
     }
 }
@@ -570,7 +587,7 @@ struct PairSearches {
 /// pair order, each with its searches prepared.
 fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> {
     let h = input.layer.thickness_m;
-    let pairs = pairs_in_reach(bc, input);
+    let pairs = broad::pairs_in_reach(bc, h, input.dt);
     prepare::surfaces_in_reach(bc, input, &pairs);
     let mut out = Vec::with_capacity(pairs.len());
     for (a, b, lo, hi) in pairs {
@@ -602,35 +619,6 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             searches,
             found: Vec::new(),
         });
-    }
-    out
-}
-
-/// The pairs of bodies `a < b` with faces whose boxes come within reach (see
-/// [`begin_searches`]), with the region `[lo, hi]` their searches look in.
-fn pairs_in_reach(bc: &BodyContact, input: &PassInput) -> Vec<prepare::PairInReach> {
-    let h = input.layer.thickness_m;
-    let reach = h.max(BEHIND_LAYERS * h);
-    let n_bodies = input.bodies.len();
-    let mut out = Vec::new();
-    for a in 0..n_bodies {
-        for b in a + 1..n_bodies {
-            let (alo, ahi) = bc.boxes[a];
-            let (blo, bhi) = bc.boxes[b];
-            // `[lo, hi]` is both boxes grown by `h`: it admits gaps up to `2h`.
-            let lo = alo.sup(&blo).add_scalar(-h);
-            let hi = ahi.inf(&bhi).add_scalar(h);
-            let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
-            let sweep = bc.sweep(a, b, input.dt);
-            let apart = gap.is_nan()
-                || gap > reach + sweep
-                || (0..3).any(|k| lo[k] > hi[k])
-                || bc.ignored_pairs.contains(&(a, b));
-            let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
-            if !apart && has_faces {
-                out.push((a, b, lo, hi));
-            }
-        }
     }
     out
 }
