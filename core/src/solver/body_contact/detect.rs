@@ -500,15 +500,21 @@ pub(super) fn search_pair(
 /// (`bounds` is scratch). Reads the contact state only.
 ///
 /// **Samples left alone.** For a constrained pair a contact farther in front of its face
-/// than `front` is dropped ([`super::CONSTRAINT_FRONT`]). A search that finds a sample in
-/// front of a face's interior at distance `d` (outside the partner; the nearest face, so
-/// every face is as far) keeps `d`; each step takes from it how far both bodies' nodes moved
-/// since the last (a sample and a face point move no farther than their body's farthest
-/// node). While what is left exceeds `front` and the step's relative travel, every face is
-/// farther than that: the sample cannot have crossed one (it is still outside), and its
-/// contact would be dropped, so it is not searched. In a pile 1 cm apart, most of the sides'
-/// samples. A sample not looked at in a step (out of the pair's region, or the pair out of
-/// reach) starts over with a search.
+/// than `front` is dropped ([`super::CONSTRAINT_FRONT`]), and against a closed surface wound
+/// outwards ([`BodyMesh::closed`]) a point outside it only ever makes a contact in front of
+/// a face (the nearest face of a point outside is seen from its front: the way to any face
+/// behind it passes through the surface, nearer), or a crossing within the step's travel.
+/// So a sample known to be outside, farther than `front` and the travel from every face,
+/// would only make a contact that is dropped, and is not searched. It is known so
+/// - when it lies outside the partner's node box (every face lies inside it) by more than
+///   that, or
+/// - when a search found it in front of a face's interior at distance `d` (every face is as
+///   far), less how far both bodies' nodes have moved since (a sample and a face point move
+///   no farther than their body's farthest node): it cannot have crossed a face meanwhile.
+///
+/// A sample not looked at in a step (out of the pair's region, or the pair out of reach)
+/// starts over with a search. In a pile 1 cm apart, most of the sides' samples are left
+/// alone. The same contacts come out, so the same bits.
 pub(super) fn pair_contacts(
     bc: &BodyContact,
     surface: &SurfacePoints,
@@ -521,6 +527,7 @@ pub(super) fn pair_contacts(
     let list = &mut search.list;
     list.outside_by.resize(list.samples.len(), 0.0);
     let motion = bc.step_motion[search.pair.0] + bc.step_motion[search.pair.1];
+    let (closed, partner) = (bc.meshes[search.mesh].closed, bc.boxes[search.pair.1]);
     let mut start = 0;
     for (k, &(i, end)) in list.samples.iter().enumerate() {
         let start_of = start as usize;
@@ -542,10 +549,15 @@ pub(super) fn pair_contacts(
             slack: list.slack,
             fastest: bc.max_speed[search.pair.1],
         };
-        if let Some(front) = search.front {
+        if let Some(front) = search.front.filter(|_| closed) {
             let travel = 2.0 * (v.norm() + ranked.fastest) * search.dt;
-            let left = list.outside_by[k] - motion;
-            if left > front.max(travel) + 1e-9 * search.h {
+            let limit = front.max(travel) + 1e-9 * search.h;
+            let off_box = (partner.0 - x)
+                .sup(&(x - partner.1))
+                .sup(&Vector3::zeros())
+                .norm();
+            let left = off_box.max(list.outside_by[k] - motion);
+            if left > limit {
                 list.outside_by[k] = left;
                 continue;
             }

@@ -30,6 +30,9 @@ pub(super) struct BodyMesh {
     pub cell: f64,
     /// Young's modulus read off the springs (eq 3.38, `A_sp = L²`), Pa.
     pub young: f64,
+    /// The display surface is closed and wound outwards ([`closed_outward`]): a point
+    /// outside its body's node box is outside it (see [`super::detect`]'s `pair_contacts`).
+    pub closed: bool,
     /// The step whose vertex positions and velocities `x`, `v` hold.
     stamp: u64,
     pub x: Vec<Vector3<f64>>,
@@ -86,6 +89,7 @@ impl BodyMesh {
             mean_edge,
             cell,
             young,
+            closed: false,
             stamp: 0,
             x: vec![Vector3::zeros(); n],
             v: vec![Vector3::zeros(); n],
@@ -189,6 +193,49 @@ impl BodyMesh {
     }
 }
 
+/// Whether `triangles` over `positions` bound a solid with their fronts outside: with
+/// corners at the same position taken as one vertex (a DCC's export splits them at seams
+/// and hard edges), every edge is walked once each way by two triangles, none is
+/// degenerate, and the enclosed (signed) volume is positive. An open sheet, a mesh with a
+/// hole, a non-manifold edge or one wound inside out is not.
+pub(super) fn closed_outward(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> bool {
+    use std::collections::HashMap;
+    if triangles.is_empty() {
+        return false;
+    }
+    // `+ 0.0` turns −0 into 0, so both weld.
+    let key = |p: &Point3<f64>| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut welded = Vec::with_capacity(positions.len());
+    for p in positions {
+        let next = ids.len() as u32;
+        welded.push(*ids.entry(key(p)).or_insert(next));
+    }
+    let mut walks: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut volume = 0.0;
+    for t in triangles {
+        let Some(v) = t
+            .iter()
+            .map(|&i| welded.get(i as usize).copied())
+            .collect::<Option<Vec<u32>>>()
+        else {
+            return false;
+        };
+        if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
+            return false;
+        }
+        for e in 0..3 {
+            *walks.entry((v[e], v[(e + 1) % 3])).or_insert(0) += 1;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize].coords);
+        volume += a.dot(&b.cross(&c)) / 6.0;
+    }
+    let paired = walks
+        .iter()
+        .all(|(&(u, v), &n)| n == 1 && walks.get(&(v, u)) == Some(&1));
+    paired && volume > 0.0
+}
+
 /// Most halvings of one display triangle by [`refine`] (at most 2¹² pieces: a triangle 64
 /// spacings long).
 const MAX_BISECTIONS: u32 = 12;
@@ -233,4 +280,44 @@ pub(super) fn refine(
         }
     }
     (points, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::box_mesh;
+
+    #[test]
+    fn closed_outward_takes_solids_only() {
+        let (p, t) = box_mesh([0.0, 0.0, 0.0], [0.2, 0.3, 0.4]);
+        assert!(closed_outward(&p, &t), "a box");
+        // Split at every corner the way a DCC exports hard edges: each triangle its own
+        // three vertices, welded back by position.
+        let split: Vec<Point3<f64>> = t
+            .iter()
+            .flat_map(|tri| tri.map(|i| p[i as usize]))
+            .collect();
+        let split_t: Vec<[u32; 3]> = (0..t.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        assert!(
+            closed_outward(&split, &split_t),
+            "a box split at its corners"
+        );
+        let inside_out: Vec<[u32; 3]> = t.iter().map(|&[a, b, c]| [a, c, b]).collect();
+        assert!(!closed_outward(&p, &inside_out), "wound inwards");
+        assert!(!closed_outward(&p, &t[1..]), "a face missing a triangle");
+        let mut doubled = t.clone();
+        doubled.extend_from_slice(&t[..2]);
+        assert!(
+            !closed_outward(&p, &doubled),
+            "a face twice (non-manifold edges)"
+        );
+        let sheet = [[0, 1, 3], [0, 3, 2]];
+        assert!(!closed_outward(&p, &sheet), "an open sheet");
+        assert!(!closed_outward(&p, &[]), "nothing");
+        let mut nan = p.clone();
+        nan[0].x = f64::NAN;
+        assert!(!closed_outward(&nan, &t), "a NaN corner");
+    }
 }

@@ -1003,7 +1003,8 @@ impl World {
         } else {
             edge_sum / (3 * triangles.len()) as f64
         };
-        let mesh = BodyMesh::new(
+        let closed = mesh::closed_outward(positions, &display);
+        let mut mesh = BodyMesh::new(
             body.0,
             embedding
                 .nodes
@@ -1016,6 +1017,7 @@ impl World {
             display,
             (mean_edge, spacing, young),
         );
+        mesh.closed = closed;
         let bc = &mut self.body_contact;
         bc.meshes.retain(|m| m.body != body.0);
         bc.meshes.push(mesh);
