@@ -346,25 +346,21 @@ fn hertz_contact_matches_the_closed_form_pulse() {
 #[test]
 fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let m = Material::preset("soft_rubber").unwrap();
-                let (pa, ta, lattice) = fitted_box([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1], 4);
-                let (pb, tb) = box_mesh([0.1, 0.07, -0.04], [0.3, 0.27, 0.16]);
-                let (pc, tc) = box_mesh([-1.0, -0.3, -1.0], [1.0, -0.01, 1.0]);
-                let mut w = World::new(WorldSettings {
-                    gravity: Vector3::new(0.0, -9.81, 0.0),
-                    layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
-                    ..WorldSettings::default()
-                });
-                w.add_collider(StaticCollider::new("table", &pc, &tc, 0.4).unwrap());
-                add_body(&mut w, "a", &pa, &ta, 4, &m, Vector3::new(3.0, 0.0, 0.0));
-                add_body(&mut w, "b", &pb, &tb, 4, &m, Vector3::new(-3.0, 0.0, 0.0));
-                frames_with_contacts(&mut w, 8)
-            })
+        in_pool(threads, || {
+            let m = Material::preset("soft_rubber").unwrap();
+            let (pa, ta, lattice) = fitted_box([-0.3, 0.0, -0.1], [-0.1, 0.2, 0.1], 4);
+            let (pb, tb) = box_mesh([0.1, 0.07, -0.04], [0.3, 0.27, 0.16]);
+            let (pc, tc) = box_mesh([-1.0, -0.3, -1.0], [1.0, -0.01, 1.0]);
+            let mut w = World::new(WorldSettings {
+                gravity: Vector3::new(0.0, -9.81, 0.0),
+                layer: WorldSettings::default_layer(lattice.cell_size, &m, 0.4),
+                ..WorldSettings::default()
+            });
+            w.add_collider(StaticCollider::new("table", &pc, &tc, 0.4).unwrap());
+            add_body(&mut w, "a", &pa, &ta, 4, &m, Vector3::new(3.0, 0.0, 0.0));
+            add_body(&mut w, "b", &pb, &tb, 4, &m, Vector3::new(-3.0, 0.0, 0.0));
+            frames_with_contacts(&mut w, 8)
+        })
     };
     let (one, log1) = run(1);
     let (two, log2) = run(2);
@@ -384,33 +380,29 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
 #[test]
 fn a_pile_gives_the_same_bits_on_1_and_2_threads() {
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let m = Material::preset("rubber").unwrap();
-                let mut w = World::new(WorldSettings {
-                    gravity: Vector3::new(0.0, -9.81, 0.0),
-                    layer: WorldSettings::default_layer(0.2 / 6.0, &m, 0.4),
-                    planes: vec![springbake_core::solver::Plane {
-                        normal: Vector3::y(),
-                        offset: 0.0,
-                    }],
-                    integrator: springbake_core::solver::Integrator::Xpbd,
-                    ..WorldSettings::default()
-                });
-                for (i, (x, z)) in [(0.0, 0.0), (0.21, 0.0), (0.0, 0.21), (0.21, 0.21)]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let (p, t) = box_mesh([x, 0.001, z], [x + 0.2, 0.201, z + 0.2]);
-                    let towards = |c: f64| if c > 0.1 { -0.5 } else { 0.5 };
-                    let push = Vector3::new(towards(x), 0.0, towards(z));
-                    add_body(&mut w, &format!("box{i}"), &p, &t, 6, &m, push);
-                }
-                frames_with_contacts(&mut w, 4)
-            })
+        in_pool(threads, || {
+            let m = Material::preset("rubber").unwrap();
+            let mut w = World::new(WorldSettings {
+                gravity: Vector3::new(0.0, -9.81, 0.0),
+                layer: WorldSettings::default_layer(0.2 / 6.0, &m, 0.4),
+                planes: vec![springbake_core::solver::Plane {
+                    normal: Vector3::y(),
+                    offset: 0.0,
+                }],
+                integrator: springbake_core::solver::Integrator::Xpbd,
+                ..WorldSettings::default()
+            });
+            for (i, (x, z)) in [(0.0, 0.0), (0.21, 0.0), (0.0, 0.21), (0.21, 0.21)]
+                .into_iter()
+                .enumerate()
+            {
+                let (p, t) = box_mesh([x, 0.001, z], [x + 0.2, 0.201, z + 0.2]);
+                let towards = |c: f64| if c > 0.1 { -0.5 } else { 0.5 };
+                let push = Vector3::new(towards(x), 0.0, towards(z));
+                add_body(&mut w, &format!("box{i}"), &p, &t, 6, &m, push);
+            }
+            frames_with_contacts(&mut w, 4)
+        })
     };
     let (one, log1) = run(1);
     let (two, log2) = run(2);
@@ -419,6 +411,15 @@ fn a_pile_gives_the_same_bits_on_1_and_2_threads() {
         .any(|r| matches!(r.partner, ContactPartner::Body(_))));
     assert_eq!(one, two);
     assert_eq!(log1, log2);
+}
+
+/// `f` run in a pool of `threads` threads (a world takes at most that many).
+fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
 }
 
 /// Frames 2 to `last` of `w` at 24 fps: the nodes at the end, and every frame's contacts.
