@@ -467,16 +467,21 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             }
         }
         bc.boxes[b] = (lo, hi);
-        bc.step_motion[b] = farthest_move(
-            &nodes.position[info.nodes.clone()],
-            bc.last_position.get(info.nodes.clone()),
-        );
+        // Only the searches between bodies read it (a lone body's pass keeps no copy).
+        bc.step_motion[b] = if bc.deformable_pairs() {
+            let range = info.nodes.clone();
+            farthest_move(&nodes.position[range.clone()], bc.last_position.get(range))
+        } else {
+            f64::INFINITY
+        };
         bc.max_speed[b] = speed2.sqrt();
         bc.mean_velocity[b] = mean_v;
         bc.spread_speed[b] = spread2.sqrt();
     }
     bc.last_position.clear();
-    bc.last_position.extend_from_slice(&nodes.position);
+    if bc.deformable_pairs() {
+        bc.last_position.extend_from_slice(&nodes.position);
+    }
     let n_bodies = bodies.len();
     let mut searches = begin_searches(bc, input);
     search_pairs(bc, input.surface, &mut searches);
