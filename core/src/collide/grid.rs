@@ -258,13 +258,8 @@ mod tests {
     fn a_query_with_its_own_marks_finds_the_same_ids_in_the_same_order() {
         // Boxes of 0.3 m scattered over a 2 m cube (spanning several cells each); queries of
         // all sizes, with the grid's marks and with two callers' own, interleaved.
-        let mut seed = 7u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = fastrand::Rng::with_seed(7);
+        let mut next = move || rng.f64();
         let boxes: Vec<(u32, Vector3<f64>, Vector3<f64>)> = (0..300)
             .map(|i| {
                 let lo = Vector3::new(next(), next(), next()) * 2.0;

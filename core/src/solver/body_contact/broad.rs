@@ -3,7 +3,7 @@
 //! other, not with all pairs of a scene of many parts.
 //!
 //! A pair may touch when its boxes lie within the search's reach plus the pair's relative
-//! travel in the step on every axis ([`pairs_in_reach`] applies the exact test). Each body's
+//! travel in the step on every axis ([`pair_in_reach`] is the exact test). Each body's
 //! box, grown by half the reach and its fastest node's travel, is a superset of that test
 //! (the pair's travel is at most both fastest nodes'): the sweep along x over the grown boxes
 //! sorted by their lower x finds every candidate, and the exact test keeps the same pairs as
@@ -14,73 +14,66 @@ use super::{prepare::PairInReach, BodyContact, BEHIND_LAYERS};
 use nalgebra::Vector3;
 
 /// The pairs of bodies `a < b`, one of them with faces, whose boxes come within reach, in
-/// `(a, b)` order, with the region `[lo, hi]` their searches look in (both boxes grown by
-/// the layer `h`: it admits gaps up to `2h`), in a step of `dt` seconds.
+/// `(a, b)` order, with the region their searches look in ([`pair_in_reach`]), in a step of
+/// `dt` seconds at layer `h`.
 pub(super) fn pairs_in_reach(bc: &BodyContact, h: f64, dt: f64) -> Vec<PairInReach> {
     let reach = h.max(BEHIND_LAYERS * h);
-    let n_bodies = bc.boxes.len();
-    let may_touch = |a: usize, b: usize| -> Option<PairInReach> {
-        let (alo, ahi) = bc.boxes[a];
-        let (blo, bhi) = bc.boxes[b];
-        let lo = alo.sup(&blo).add_scalar(-h);
-        let hi = ahi.inf(&bhi).add_scalar(h);
-        let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
-        let sweep = bc.sweep(a, b, dt);
-        let apart = gap.is_nan()
-            || gap > reach + sweep
-            || (0..3).any(|k| lo[k] > hi[k])
-            || bc.ignored_pairs.contains(&(a, b));
-        let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
-        (!apart && has_faces).then_some((a, b, lo, hi))
-    };
-    // Grown boxes of the bodies that can touch anything; the others (a box or speed that
-    // is not finite) are tested against every body.
-    let mut swept: Vec<(f64, f64, usize)> = Vec::new();
+    // Grown boxes of the bodies that can touch anything, by lower x; the others (a box or
+    // speed that is not finite) are tested against every body.
+    let mut swept: Vec<(Vector3<f64>, Vector3<f64>, usize)> = Vec::new();
     let mut wild = Vec::new();
-    let mut grown = vec![None; n_bodies];
-    for (b, slot) in grown.iter_mut().enumerate() {
-        let (lo, hi) = bc.boxes[b];
+    for (b, &(lo, hi)) in bc.boxes.iter().enumerate() {
         if (0..3).any(|k| lo[k] > hi[k]) {
             continue; // no nodes: an empty box touches nothing
         }
         let e = 0.5 * reach + bc.max_speed[b] * dt;
         let finite = e.is_finite() && (0..3).all(|k| lo[k].is_finite() && hi[k].is_finite());
         if finite {
-            let (lo, hi) = (lo.add_scalar(-e), hi.add_scalar(e));
-            *slot = Some((lo, hi));
-            swept.push((lo.x, hi.x, b));
+            swept.push((lo.add_scalar(-e), hi.add_scalar(e), b));
         } else {
             wild.push(b);
         }
     }
-    swept.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.2.cmp(&q.2)));
-    let overlap = |a: &(Vector3<f64>, Vector3<f64>), b: &(Vector3<f64>, Vector3<f64>)| {
-        (1..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
-    };
+    swept.sort_by(|p, q| p.0.x.total_cmp(&q.0.x).then(p.2.cmp(&q.2)));
     let mut out = Vec::new();
-    for (i, &(_, hi_x, a)) in swept.iter().enumerate() {
-        for &(lo_x, _, b) in &swept[i + 1..] {
-            if lo_x > hi_x {
+    for (i, (alo, ahi, a)) in swept.iter().enumerate() {
+        for (blo, bhi, b) in &swept[i + 1..] {
+            if blo.x > ahi.x {
                 break;
             }
-            let (Some(ga), Some(gb)) = (&grown[a], &grown[b]) else {
-                continue;
-            };
-            if overlap(ga, gb) {
-                out.extend(may_touch(a.min(b), a.max(b)));
+            if (1..3).all(|k| alo[k] <= bhi[k] && blo[k] <= ahi[k]) {
+                out.extend(pair_in_reach(bc, (*a.min(b), *a.max(b)), h, dt));
             }
         }
     }
     for &w in &wild {
-        for b in 0..n_bodies {
+        for b in 0..bc.boxes.len() {
             // A pair of two wild bodies is tested once, from its lower one.
             if b != w && !(wild.contains(&b) && b < w) {
-                out.extend(may_touch(w.min(b), w.max(b)));
+                out.extend(pair_in_reach(bc, (w.min(b), w.max(b)), h, dt));
             }
         }
     }
     out.sort_by_key(|&(a, b, _, _)| (a, b));
     out
+}
+
+/// Bodies `a < b` when they may touch in the step (the exact test): their boxes lie within
+/// the reach plus the pair's travel on every axis, within `2h` of each other, the pair is
+/// not ignored and one of them has faces; with the region `[lo, hi]` (both boxes grown by
+/// `h`) the searches look in.
+fn pair_in_reach(bc: &BodyContact, (a, b): (usize, usize), h: f64, dt: f64) -> Option<PairInReach> {
+    let reach = h.max(BEHIND_LAYERS * h);
+    let ((alo, ahi), (blo, bhi)) = (bc.boxes[a], bc.boxes[b]);
+    let lo = alo.sup(&blo).add_scalar(-h);
+    let hi = ahi.inf(&bhi).add_scalar(h);
+    let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
+    let apart = gap.is_nan()
+        || gap > reach + bc.sweep(a, b, dt)
+        || (0..3).any(|k| lo[k] > hi[k])
+        || bc.ignored_pairs.contains(&(a, b));
+    let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
+    (!apart && has_faces).then_some((a, b, lo, hi))
 }
 
 #[cfg(test)]
@@ -89,38 +82,19 @@ mod tests {
 
     /// Every pair tested, as the contact pass did before the sweep.
     fn every_pair(bc: &BodyContact, h: f64, dt: f64) -> Vec<PairInReach> {
-        let reach = h.max(BEHIND_LAYERS * h);
-        let mut out = Vec::new();
-        for a in 0..bc.boxes.len() {
-            for b in a + 1..bc.boxes.len() {
-                let ((alo, ahi), (blo, bhi)) = (bc.boxes[a], bc.boxes[b]);
-                let lo = alo.sup(&blo).add_scalar(-h);
-                let hi = ahi.inf(&bhi).add_scalar(h);
-                let gap = (alo.sup(&blo) - ahi.inf(&bhi)).max();
-                let apart = gap.is_nan()
-                    || gap > reach + bc.sweep(a, b, dt)
-                    || (0..3).any(|k| lo[k] > hi[k])
-                    || bc.ignored_pairs.contains(&(a, b));
-                let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
-                if !apart && has_faces {
-                    out.push((a, b, lo, hi));
-                }
-            }
-        }
-        out
+        let n = bc.boxes.len();
+        (0..n)
+            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+            .filter_map(|pair| pair_in_reach(bc, pair, h, dt))
+            .collect()
     }
 
     #[test]
     fn the_sweep_finds_the_pairs_testing_every_pair_finds() {
         // 300 boxes of 1–20 cm in a 1 m cube, some fast, some without faces, one ignored
         // pair, one box with a NaN corner, one infinitely fast, one empty.
-        let mut seed = 11u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = fastrand::Rng::with_seed(11);
+        let mut next = move || rng.f64();
         let n = 300;
         let mut bc = BodyContact::default();
         for b in 0..n {

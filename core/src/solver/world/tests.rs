@@ -275,14 +275,6 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
         ([1.0, 0.3, 0.0], [1.2, 0.5, 0.2], down),
         ([1.21, 0.3, 0.0], [1.41, 0.5, 0.2], down),
     ];
-    let lattice_of = |p: &[Point3<f64>], t: &[[u32; 3]]| {
-        let resolution = Resolution::CellsAlongLongest(4);
-        let settings = FitSettings {
-            resolution,
-            ..FitSettings::default()
-        };
-        fit_lattice(p, t, &settings).unwrap()
-    };
     let mut lists = World::new(WorldSettings {
         planes: vec![Plane {
             normal: Vector3::y(),
@@ -293,12 +285,7 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
         ..WorldSettings::default()
     });
     for (k, (lo, hi, v)) in boxes.into_iter().enumerate() {
-        let (p, t) = box_mesh(lo, hi);
-        let lattice = lattice_of(&p, &t);
-        let body = lists.add_lattice_body(format!("box{k}"), &lattice, &m, v);
-        let (samples, areas) = crate::lattice::surface_samples(&p, &t, 0.5 * lattice.cell_size);
-        lists.add_contact_surface(body, &lattice, &samples, &areas);
-        lists.add_collision_surface(body, &lattice, &p, &t);
+        add_box_body(&mut lists, &format!("box{k}"), (lo, hi), 4, &m, v);
     }
     let mut grid = lists.clone();
     grid.body_contact.lists_off = true;
@@ -337,16 +324,15 @@ fn contacts_left_out_in_front_would_not_have_acted() {
     for (i, layer) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)] {
         let x = i as f64 * 0.21;
         let y = 0.05 + layer as f64 * 0.21;
-        let (p, t) = box_mesh([x, y, 0.0], [x + 0.2, y + 0.2, 0.2]);
-        let settings = FitSettings {
-            resolution: Resolution::CellsAlongLongest(3),
-            ..FitSettings::default()
-        };
-        let lattice = fit_lattice(&p, &t, &settings).unwrap();
-        let body = kept.add_lattice_body(format!("box{i}_{layer}"), &lattice, &m, Vector3::zeros());
-        let (samples, areas) = crate::lattice::surface_samples(&p, &t, 0.5 * lattice.cell_size);
-        kept.add_contact_surface(body, &lattice, &samples, &areas);
-        kept.add_collision_surface(body, &lattice, &p, &t);
+        let corners = ([x, y, 0.0], [x + 0.2, y + 0.2, 0.2]);
+        add_box_body(
+            &mut kept,
+            &format!("box{i}_{layer}"),
+            corners,
+            3,
+            &m,
+            Vector3::zeros(),
+        );
     }
     let mut all = kept.clone();
     all.body_contact.front_off = true;
@@ -366,6 +352,28 @@ fn contacts_left_out_in_front_would_not_have_acted() {
     // Most steps left contacts out, and the boxes met.
     assert!(fewer > 600, "{fewer} steps with fewer constraints");
     assert!(touched > 100, "{touched} steps with constraints");
+}
+
+/// Add a box `(lo, hi)` at `cells` cells along its longest side, moving at `velocity`, with
+/// its contact samples and collision surface (it touches the world's other bodies).
+fn add_box_body(
+    world: &mut World,
+    name: &str,
+    (lo, hi): ([f64; 3], [f64; 3]),
+    cells: u32,
+    material: &Material,
+    velocity: Vector3<f64>,
+) {
+    let (p, t) = box_mesh(lo, hi);
+    let settings = FitSettings {
+        resolution: Resolution::CellsAlongLongest(cells),
+        ..FitSettings::default()
+    };
+    let lattice = fit_lattice(&p, &t, &settings).unwrap();
+    let body = world.add_lattice_body(name, &lattice, material, velocity);
+    let (samples, areas) = crate::lattice::surface_samples(&p, &t, 0.5 * lattice.cell_size);
+    world.add_contact_surface(body, &lattice, &samples, &areas);
+    world.add_collision_surface(body, &lattice, &p, &t);
 }
 
 /// A world gets a thread per 2048 of its parallel size, at least one, at most what the pool
