@@ -179,9 +179,9 @@ impl Neighbours {
 }
 
 /// Body `a`'s samples against body `b`'s mesh in this step: the pair's list, taken out
-/// of the table (give it back with [`put_back`]) and rebuilt when the bodies have moved too
-/// far for it (module docs), or marked to be built ([`build`]). Samples must be up to date (`update_samples`), the mesh too
-/// (`BodyMesh::update`). `[lo, hi]` is the pair's region.
+/// of the table (give it back with [`put_back`]), marked to be built ([`build`]) when the
+/// bodies have moved too far for it (module docs). The samples and the mesh must be fresh
+/// in this step ([`super::prepare`]). `[lo, hi]` is the pair's region.
 pub(super) fn take(
     bc: &mut BodyContact,
     input: &PassInput,
