@@ -42,7 +42,33 @@ pub(crate) struct PointContact {
     pub capsule_work: f64,
 }
 
+/// Relative rounding allowed for a point's trilinear sum of its cell's nodes (and for its
+/// weights' sum) in [`Surfaces::clear_of_hull`]: far above the few ulps the sums can be off.
+pub(crate) const HULL_ROUNDING: f64 = 1e-9;
+
 impl Surfaces<'_> {
+    /// Whether every convex combination of `corners` (a point embedded in a cell whose nodes
+    /// these are, with weights that are not negative) is clear of every surface: in front of
+    /// each plane, and outside each capsule's box on one axis (so [`Self::resolve`] would
+    /// leave it alone). A margin of [`HULL_ROUNDING`] times the coordinates' size covers the
+    /// rounding of the point's weighted sum.
+    pub(crate) fn clear_of_hull(&self, corners: &[V3; 8]) -> bool {
+        let size = corners.iter().map(|x| x.amax()).fold(0.0, f64::max);
+        self.planes.iter().all(|p| {
+            let slack = HULL_ROUNDING * (size + p.offset.abs());
+            corners.iter().all(|x| p.normal.dot(x) - p.offset > slack)
+        }) && self.capsules.iter().all(|(c, _)| {
+            let (a, b) = c.endpoints();
+            let lo = a.inf(&b).add_scalar(-c.radius);
+            let hi = a.sup(&b).add_scalar(c.radius);
+            let slack = HULL_ROUNDING * (size + lo.amax().max(hi.amax()));
+            (0..3).any(|k| {
+                corners.iter().all(|x| x[k] < lo[k] - slack)
+                    || corners.iter().all(|x| x[k] > hi[k] + slack)
+            })
+        })
+    }
+
     /// Whether every point within `reach` of `x` is clear of every surface.
     pub(crate) fn beyond_reach(&self, x: &V3, reach: f64) -> bool {
         self.planes
@@ -197,5 +223,62 @@ mod tests {
         assert_eq!(c.correction, c.from_capsules);
         assert!(s.beyond_reach(&V3::new(0.0, 0.5, 0.0), 0.1));
         assert!(!s.beyond_reach(&V3::new(0.0, 0.15, 0.0), 0.1));
+    }
+
+    /// A cell cleared whole has no embedded point that `resolve` would touch, and a cell
+    /// with any such point is never cleared; cells drawn at random near a tilted floor and a
+    /// capsule, many straddling them.
+    #[test]
+    fn a_cell_clear_of_the_surfaces_has_no_point_in_contact() {
+        let floor = [Plane {
+            normal: V3::new(0.1, 1.0, -0.2).normalize(),
+            offset: 0.3,
+        }];
+        let cap = Capsule {
+            centre: V3::new(0.0, 1.0, 0.0),
+            axis: V3::new(1.0, 0.5, 0.0).normalize(),
+            length: 0.8,
+            radius: 0.15,
+            velocity: V3::zeros(),
+            friction: 0.0,
+        };
+        let s = Surfaces {
+            planes: &floor,
+            friction: 0.4,
+            capsules: &[(cap, cap)],
+        };
+        let mut rng = fastrand::Rng::with_seed(7);
+        let coord = |rng: &mut fastrand::Rng, span: f64| (rng.f64() - 0.5) * span;
+        let (mut cleared, mut kept) = (0, 0);
+        for _ in 0..4000 {
+            let centre = V3::new(
+                coord(&mut rng, 3.0),
+                0.6 + coord(&mut rng, 2.0),
+                coord(&mut rng, 1.0),
+            );
+            let corners: [V3; 8] = std::array::from_fn(|_| {
+                let r = &mut rng;
+                centre + V3::new(coord(r, 0.2), coord(r, 0.2), coord(r, 0.2))
+            });
+            let touching = (0..64).any(|_| {
+                let raw: [f64; 8] = std::array::from_fn(|_| rng.f64());
+                let total: f64 = raw.iter().sum();
+                let p = (0..8).fold(V3::zeros(), |p, c| p + corners[c] * (raw[c] / total));
+                s.resolve(p, p).depth > 0.0 || corners.iter().any(|c| s.resolve(*c, *c).depth > 0.0)
+            });
+            if s.clear_of_hull(&corners) {
+                cleared += 1;
+                assert!(
+                    !touching,
+                    "cleared a cell with a point in contact: {corners:?}"
+                );
+            } else {
+                kept += 1;
+            }
+        }
+        assert!(
+            cleared > 1000 && kept > 1000,
+            "{cleared} cleared, {kept} kept"
+        );
     }
 }

@@ -99,6 +99,11 @@ pub(crate) struct Model {
     /// Per point in that order, what the contact pass reads of it (in the order it reads
     /// them: from `World::surface` in point order, a pass missed the cache at every point).
     visits: Vec<PointVisit>,
+    /// Per group of `points`: whether its points all lie in the convex hull of one cell's
+    /// nodes (the same nodes, weights that are not negative and add up to 1), so that a group
+    /// whose nodes are all clear of the surfaces ([`contact::Surfaces::clear_of_hull`]) has
+    /// no point in contact and is skipped whole.
+    group_in_hull: Vec<bool>,
     /// Springs solved as distance constraints (bodies without cells).
     springs: Vec<usize>,
     /// Shortest rest edge of any cell or constraint spring, m.
@@ -161,6 +166,19 @@ struct PointVisit {
     nodes: [u32; 8],
     weights: [f64; 8],
     reach: f64,
+}
+
+/// Whether every point of `visits` is a convex combination of the same eight nodes.
+fn in_one_hull(visits: &[PointVisit]) -> bool {
+    let Some(first) = visits.first() else {
+        return false;
+    };
+    visits.iter().all(|v| {
+        let sum: f64 = v.weights.iter().sum();
+        v.nodes == first.nodes
+            && v.weights.iter().all(|&w| w >= 0.0)
+            && (sum - 1.0).abs() <= contact::HULL_ROUNDING
+    })
 }
 
 /// What one step reports to the world's frame totals.
@@ -239,6 +257,11 @@ impl Model {
                 weights: world.surface.weights[i as usize],
                 reach: world.surface.reach[i as usize],
             })
+            .collect::<Vec<_>>();
+        let group_in_hull = points
+            .groups
+            .iter()
+            .map(|g| in_one_hull(&visits[g.start as usize..g.end as usize]))
             .collect();
         let s = &world.springs;
         let shortest_spring = springs
@@ -254,6 +277,7 @@ impl Model {
             cells,
             points,
             visits,
+            group_in_hull,
             springs,
             shortest_edge,
             previous: vec![V3::zeros(); n],

@@ -214,6 +214,7 @@ fn contact_points_by_colour(
     let Model {
         points,
         visits,
+        group_in_hull,
         inv_mass: w,
         previous: prev,
         contact_shift,
@@ -277,21 +278,36 @@ fn contact_points_by_colour(
             }
         }
     };
+    // A group inside one cell whose nodes are all clear of the surfaces has no point that
+    // touches: `visit` would leave each of them alone.
+    let group_clear = |g: usize, first_point: usize| {
+        group_in_hull[g] && {
+            // SAFETY: as in `visit`; these are the nodes of the group's own cell.
+            #[allow(unsafe_code)]
+            let corners = visits[first_point]
+                .nodes
+                .map(|n| unsafe { xs.get(n as usize) });
+            surfaces.clear_of_hull(&corners)
+        }
+    };
     let mut slot = 0;
     for (colour, range) in points.colours.iter().enumerate() {
-        let groups = &points.groups[range.start as usize..range.end as usize];
+        let first_group = range.start as usize;
+        let groups = &points.groups[first_group..range.end as usize];
         let per_task = point_groups_per_task(colour, groups.len(), cells);
         let tasks = groups.len().div_ceil(per_task);
         team::for_each(
             Chunks::new(&mut point_sums[slot..slot + tasks], 1),
             |t, sums| {
                 let end = ((t + 1) * per_task).min(groups.len());
-                let groups = &groups[t * per_task..end];
                 let mut task = PointSums {
-                    first: groups.first().map_or(0, |g| g.start),
+                    first: groups.get(t * per_task).map_or(0, |g| g.start),
                     ..PointSums::default()
                 };
-                for group in groups {
+                for (g, group) in groups.iter().enumerate().take(end).skip(t * per_task) {
+                    if group_clear(first_group + g, group.start as usize) {
+                        continue;
+                    }
                     for o in group.start..group.end {
                         visit(o as usize, &mut task);
                     }
