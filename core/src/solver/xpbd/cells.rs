@@ -37,7 +37,7 @@
 
 use super::lanes::{solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
-use crate::solver::team::{self, Chunks, Disjoint, Tasks};
+use crate::solver::team::{self, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -98,8 +98,6 @@ pub(crate) struct CellSet {
     /// Cells of each colour; the last one may be `serial` (cells that share nodes).
     colours: Vec<Range<usize>>,
     serial_colour: Option<usize>,
-    /// Per cell of the widest colour: its nodes after the solve (scratch).
-    out: Vec<[V3; 8]>,
     /// Shortest rest edge of any cell, m (0 without cells).
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
@@ -122,9 +120,6 @@ const MAX_COLOURS: usize = 64;
 
 /// Four-cell groups a task of a colour pass solves (see [`team`]).
 const GROUPS_PER_TASK: usize = 8;
-
-/// Cells a task of a colour's scatter writes back.
-const SCATTER_CELLS: usize = 128;
 
 /// Cells a task of a colour's barrier pass looks at.
 const BARRIER_CELLS: usize = 128;
@@ -270,8 +265,6 @@ impl CellSet {
             self.colours.push(start..end);
             start = end;
         }
-        let widest = self.colours.iter().map(|r| r.len()).max().unwrap_or(0);
-        self.out = vec![[V3::zeros(); 8]; widest];
     }
 
     /// The display-surface points (their cells' node ids, joint followers already resolved)
@@ -387,76 +380,61 @@ impl CellSet {
                 }
                 continue;
             }
-            let out = &mut self.out[..nodes.len()];
-            {
-                let xs: &[V3] = x;
-                let solve_one = |j: usize, local: &mut [V3; 8]| {
-                    *local = gather(&nodes[j], xs);
-                    let wl = nodes[j].map(|n| w[n as usize]);
-                    let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                    solve_cell(local, &wl, shape[j], alphas, &axis[j]);
-                };
-                let solve_group = |group: usize, locals: &mut [[V3; 8]]| {
-                    let first = group * LANES;
-                    let parity = |j: usize| match shape[j] {
-                        Shape::Cube { odd, .. } => Some(odd),
-                        Shape::Tet { .. } => None,
-                    };
-                    let odd = parity(first);
-                    let lanes = locals.len() == LANES
-                        && odd.is_some()
-                        && (first..first + LANES).all(|j| parity(j) == odd);
-                    if !lanes {
-                        for (k, local) in locals.iter_mut().enumerate() {
-                            solve_one(first + k, local);
-                        }
-                        return;
-                    }
-                    let cell = |k: usize| first + k;
-                    let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
-                        Shape::Cube { inv_h, .. } => inv_h,
-                        Shape::Tet { .. } => 0.0,
-                    });
-                    let cubes = Cubes {
-                        inv_h,
-                        hydro: std::array::from_fn(|k| hydro[cell(k)] * inv_dt2),
-                        dev: std::array::from_fn(|k| dev[cell(k)] * inv_dt2),
-                        axis_root: std::array::from_fn(|k| axis[cell(k)]),
-                        odd: odd == Some(true),
-                    };
-                    let from = Gather {
-                        nodes: &nodes[first..first + LANES],
-                        x: xs,
-                        w,
-                    };
-                    solve_cubes(locals, &from, &cubes);
-                };
-                // A group takes about a microsecond: hand out GROUPS_PER_TASK of them at a
-                // time (a 16³ lattice's colour, 106 groups, is 14 tasks).
-                team::for_each(
-                    Chunks::new(out, LANES * GROUPS_PER_TASK),
-                    |task, locals: &mut [[V3; 8]]| {
-                        for (k, group) in locals.chunks_mut(LANES).enumerate() {
-                            solve_group(task * GROUPS_PER_TASK + k, group);
-                        }
-                    },
-                );
-            }
-            // Back into the positions, a task's cells at a time: a colour's cells share no
-            // node, so no two tasks write the same one.
-            let to = Disjoint::new(x);
-            let out = &out[..];
-            team::for_each(Tasks(nodes.len().div_ceil(SCATTER_CELLS)), |task, _| {
-                let cells = task * SCATTER_CELLS..((task + 1) * SCATTER_CELLS).min(nodes.len());
-                for (cell, local) in nodes[cells.clone()].iter().zip(&out[cells]) {
-                    for (k, &n) in cell.iter().enumerate() {
-                        // SAFETY: a node belongs to one cell of the colour (see above).
-                        #[allow(unsafe_code)]
-                        unsafe {
-                            to.set(n as usize, local[k])
-                        };
-                    }
+            let xs = Disjoint::new(&mut *x);
+            // SAFETY (every `get`, `set` and `solve_cubes` of this colour): a node belongs
+            // to one cell of the colour, so no two tasks read or write the same one.
+            #[allow(unsafe_code)]
+            let solve_one = |j: usize| {
+                let mut local = nodes[j].map(|n| unsafe { xs.get(n as usize) });
+                let wl = nodes[j].map(|n| w[n as usize]);
+                let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
+                solve_cell(&mut local, &wl, shape[j], alphas, &axis[j]);
+                for (k, &n) in nodes[j].iter().enumerate() {
+                    unsafe { xs.set(n as usize, local[k]) };
                 }
+            };
+            let solve_group = |group: usize| {
+                let first = group * LANES;
+                let end = (first + LANES).min(nodes.len());
+                let parity = |j: usize| match shape[j] {
+                    Shape::Cube { odd, .. } => Some(odd),
+                    Shape::Tet { .. } => None,
+                };
+                let odd = parity(first);
+                let lanes =
+                    end - first == LANES && odd.is_some() && (first..end).all(|j| parity(j) == odd);
+                if !lanes {
+                    (first..end).for_each(solve_one);
+                    return;
+                }
+                let cell = |k: usize| first + k;
+                let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
+                    Shape::Cube { inv_h, .. } => inv_h,
+                    Shape::Tet { .. } => 0.0,
+                });
+                let cubes = Cubes {
+                    inv_h,
+                    hydro: std::array::from_fn(|k| hydro[cell(k)] * inv_dt2),
+                    dev: std::array::from_fn(|k| dev[cell(k)] * inv_dt2),
+                    axis_root: std::array::from_fn(|k| axis[cell(k)]),
+                    odd: odd == Some(true),
+                };
+                let from = Gather {
+                    nodes: &nodes[first..end],
+                    x: &xs,
+                    w,
+                };
+                #[allow(unsafe_code)]
+                unsafe {
+                    solve_cubes(&from, &cubes)
+                };
+            };
+            // A group takes about a microsecond: hand out GROUPS_PER_TASK of them at a time
+            // (a 16³ lattice's colour, 106 groups, is 14 tasks).
+            let groups = nodes.len().div_ceil(LANES);
+            team::for_each(Tasks(groups.div_ceil(GROUPS_PER_TASK)), |task, ()| {
+                let first = task * GROUPS_PER_TASK;
+                (first..(first + GROUPS_PER_TASK).min(groups)).for_each(solve_group);
             });
         }
     }
@@ -997,15 +975,20 @@ mod tests {
         let nodes: Vec<[u32; 8]> = (0..LANES as u32)
             .map(|l| std::array::from_fn(|k| 8 * l + k as u32))
             .collect();
-        let x: Vec<V3> = cells.iter().flatten().copied().collect();
+        let mut x: Vec<V3> = cells.iter().flatten().copied().collect();
         let wn: Vec<f64> = w.iter().flatten().copied().collect();
         let from = Gather {
             nodes: &nodes,
-            x: &x,
+            x: &Disjoint::new(&mut x),
             w: &wn,
         };
-        solve_cubes(&mut cells, &from, &cubes);
-        assert_eq!(cells, scalar);
+        // SAFETY: one thread, four cells with their own nodes.
+        #[allow(unsafe_code)]
+        unsafe {
+            solve_cubes(&from, &cubes)
+        };
+        let lanes: Vec<[V3; 8]> = x.chunks(8).map(|c| std::array::from_fn(|k| c[k])).collect();
+        assert_eq!(lanes, scalar);
     }
 
     /// A cube cell's energy, written out per corner, against the general element path (F as

@@ -9,6 +9,7 @@
 //! (tested).
 
 use super::cells::COLLAPSE_J;
+use crate::solver::team::Disjoint;
 use nalgebra::Vector3;
 
 /// Cells per group.
@@ -53,7 +54,7 @@ macro_rules! three {
 }
 
 #[inline(always)]
-fn map_ref<'a>(f: impl Fn(usize) -> &'a V3) -> [&'a V3; LANES] {
+fn map_v3(f: impl Fn(usize) -> V3) -> [V3; LANES] {
     std::array::from_fn(f)
 }
 
@@ -142,30 +143,36 @@ pub(crate) struct Cubes {
     pub odd: bool,
 }
 
-/// Where a group's nodes come from: the four cells' node ids (`nodes`, one cell a lane) into
-/// the positions `x` and inverse masses `w`.
-pub(crate) struct Gather<'a> {
+/// A group's nodes: the four cells' node ids (`nodes`, one cell a lane) into the positions
+/// `x` (read and written in place) and inverse masses `w`.
+pub(crate) struct Gather<'a, 'x> {
     pub nodes: &'a [[u32; 8]],
-    pub x: &'a [V3],
+    pub x: &'a Disjoint<'x, V3>,
     pub w: &'a [f64],
 }
 
-/// Solve the four cells `from` names, writing their nodes' new positions to `cells` (one
-/// cell a lane), with 256-bit AVX arithmetic where the CPU has it: the same IEEE operations
-/// in the same order (AVX without FMA fuses nothing), so the same bits on every CPU. The
-/// nodes are read straight into the lanes (a copy of each cell's eight nodes first, then the
-/// lanes from it, cost the standard scene a tenth of its time in copies).
+/// Solve the four cells `from` names, reading their nodes' positions from `from.x` and
+/// writing the new ones back there, with 256-bit AVX arithmetic where the CPU has it: the
+/// same IEEE operations in the same order (AVX without FMA fuses nothing), so the same bits
+/// on every CPU. The nodes are read straight into the lanes and written straight back (a copy
+/// of each cell's eight nodes first, then the lanes from it, cost the standard scene a tenth
+/// of its time in copies; a buffer of solved cells written back in a pass of its own, 5 %).
+///
+/// # Safety
+/// No other task of the pass touches the four cells' nodes (a colour's cells share none).
 // Kept out of line: inlined into the colour loop it zeroed its lane buffers with a memset
 // every call and the standard scene ran 11 % slower.
 #[inline(never)]
-pub(crate) fn solve_cubes(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
+#[allow(unsafe_code)]
+pub(crate) unsafe fn solve_cubes(from: &Gather, p: &Cubes) {
     #[cfg(target_arch = "x86_64")]
     if avx_available() {
-        // SAFETY: `avx_available` found the CPU feature the function is compiled for.
-        #[allow(unsafe_code)]
-        return unsafe { solve_cubes_avx(cells, from, p) };
+        // SAFETY: `avx_available` found the CPU feature the function is compiled for; the
+        // nodes are the caller's alone.
+        return unsafe { solve_cubes_avx(from, p) };
     }
-    solve_cubes_here(cells, from, p)
+    // SAFETY: the caller's.
+    unsafe { solve_cubes_here(from, p) }
 }
 
 /// Whether this CPU has AVX (checked once).
@@ -178,16 +185,20 @@ fn avx_available() -> bool {
 /// [`solve_cubes_here`] compiled for AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-fn solve_cubes_avx(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
-    solve_cubes_here(cells, from, p)
+#[allow(unsafe_code)]
+unsafe fn solve_cubes_avx(from: &Gather, p: &Cubes) {
+    // SAFETY: the caller's.
+    unsafe { solve_cubes_here(from, p) }
 }
 
 #[inline(always)]
-fn solve_cubes_here(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
+#[allow(unsafe_code)]
+unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
     let nodes: &[[u32; 8]; LANES] = from.nodes.try_into().expect("a group is four cells");
     let mut x = [V::ZERO; 8];
     for (k, xk) in x.iter_mut().enumerate() {
-        let at: [&V3; LANES] = map_ref(|l| &from.x[nodes[l][k] as usize]);
+        // SAFETY: the caller's (these nodes are this task's alone).
+        let at: [V3; LANES] = map_v3(|l| unsafe { from.x.get(nodes[l][k] as usize) });
         *xk = V {
             x: map(|l| at[l].x),
             y: map(|l| at[l].y),
@@ -203,9 +214,13 @@ fn solve_cubes_here(cells: &mut [[V3; 8]], from: &Gather, p: &Cubes) {
     for c in 0..8 {
         barrier(&mut x, &wk, c, p);
     }
-    for (l, cell) in cells.iter_mut().enumerate() {
+    for (l, cell) in nodes.iter().enumerate() {
         for (k, xk) in x.iter().enumerate() {
-            cell[k] = V3::new(xk.x[l], xk.y[l], xk.z[l]);
+            // SAFETY: as above.
+            unsafe {
+                from.x
+                    .set(cell[k] as usize, V3::new(xk.x[l], xk.y[l], xk.z[l]))
+            };
         }
     }
 }
