@@ -18,6 +18,16 @@ pub(crate) const LANES: usize = 4;
 type L = [f64; LANES];
 type V3 = Vector3<f64>;
 
+/// A condition per lane: 1 where it holds, 0 where not (as `f64`, so that setting and testing
+/// it stay in vector registers: as `[bool; LANES]` each lane went through a byte in memory).
+type Mask = L;
+
+/// The lanes where `holds`.
+#[inline(always)]
+fn mask(holds: impl Fn(usize) -> bool) -> Mask {
+    map(|l| if holds(l) { 1.0 } else { 0.0 })
+}
+
 /// A vector per lane.
 #[derive(Clone, Copy)]
 struct V {
@@ -117,14 +127,16 @@ fn step(x: &mut V, g: &V, w: &L, dl: &L) {
     *x = x.add(&g.scale(&k));
 }
 
-/// `-value / denominator` where the lane is `active` and the denominator positive and
-/// finite; 0 elsewhere.
+/// `-value / denominator` where the lane is `active` (see [`Mask`]) and the denominator
+/// positive and finite; 0 elsewhere. Every lane divides and a mask picks (a branch per lane kept the
+/// divisions scalar: 8 % of the kernel's instructions).
 #[inline(always)]
-fn multiplier(value: &L, denominator: &L, active: &[bool; LANES]) -> L {
+fn multiplier(value: &L, denominator: &L, active: &Mask) -> L {
     map(|l| {
         let d = denominator[l];
-        if active[l] && d > 0.0 && d.is_finite() {
-            -value[l] / d
+        let q = -value[l] / d;
+        if (active[l] != 0.0) & (d > 0.0) & (d < f64::INFINITY) {
+            q
         } else {
             0.0
         }
@@ -205,7 +217,12 @@ unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
             z: map(|l| at[l].z),
         };
     }
-    let wk: [L; 8] = std::array::from_fn(|k| map(|l| from.w[nodes[l][k] as usize]));
+    let mut wk = [[0.0; LANES]; 8];
+    for (k, wk) in wk.iter_mut().enumerate() {
+        for (l, w) in wk.iter_mut().enumerate() {
+            *w = from.w[nodes[l][k] as usize];
+        }
+    }
     volume(&mut x, &wk, p);
     let corners = if p.odd { [1, 2, 4, 7] } else { [0, 3, 5, 6] };
     for c in corners {
@@ -241,7 +258,9 @@ fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes) {
         grad[a] = grad[a].sub(&g1.add(&g2).add(&g3));
     }
     let sixth = [1.0 / 6.0; LANES];
-    let grad = grad.map(|g| g.scale(&sixth));
+    for g in &mut grad {
+        *g = g.scale(&sixth);
+    }
     let inv_v = map(|l| p.inv_h[l] * p.inv_h[l] * p.inv_h[l]);
     let value = map(|l| six_v[l] * sixth[l] * inv_v[l] - 1.0);
     let mut denominator = p.hydro;
@@ -249,7 +268,7 @@ fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes) {
         let n = grad[k].dot(&grad[k]);
         denominator = map(|l| denominator[l] + w[k][l] * n[l] * inv_v[l] * inv_v[l]);
     }
-    let active: [bool; LANES] = std::array::from_fn(|l| p.hydro[l].is_finite());
+    let active = mask(|l| p.hydro[l].is_finite());
     let dl = multiplier(&value, &denominator, &active);
     let dl = map(|l| dl[l] * inv_v[l]);
     for k in 0..8 {
@@ -266,15 +285,7 @@ fn signs(c: usize, inv_h: &L) -> [L; 3] {
 /// Project corner `c`'s constraint of value `value` whose gradient by column k of F is
 /// `g[k]` (already times `s_k`).
 #[inline(always)]
-fn project(
-    x: &mut [V; 8],
-    w: &[L; 8],
-    c: usize,
-    g: [V; 3],
-    value: &L,
-    alpha: &L,
-    on: &[bool; LANES],
-) {
+fn project(x: &mut [V; 8], w: &[L; 8], c: usize, g: [V; 3], value: &L, alpha: &L, on: &Mask) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let apex = g[0].add(&g[1]).add(&g[2]).neg();
     let mut denominator = map(|l| alpha[l]);
@@ -301,9 +312,15 @@ fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let mut e = [[[0.0; LANES]; 3]; 3];
     let mut we = [[[0.0; LANES]; 3]; 3];
     for i in 0..3 {
-        for j in 0..3 {
+        for j in i..3 {
+            // `f_j · f_i` is `f_i · f_j` to the bit (each product commutes), so once a pair.
             let d = f[i].dot(&f[j]);
             e[i][j] = map(|l| 0.5 * (d[l] - if i == j { 1.0 } else { 0.0 }));
+            e[j][i] = e[i][j];
+        }
+    }
+    for i in 0..3 {
+        for j in 0..3 {
             we[i][j] = map(|l| e[i][j][l] * p.axis_root[l][i] * p.axis_root[l][j]);
         }
     }
@@ -315,7 +332,7 @@ fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
         }
     }
     let value = map(|l| sum[l].sqrt());
-    let on: [bool; LANES] = std::array::from_fn(|l| value[l] > 1e-14);
+    let on = mask(|l| value[l] > 1e-14);
     let inv = map(|l| {
         if value[l] > 1e-14 {
             1.0 / value[l]
@@ -341,8 +358,8 @@ fn barrier(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let f: [V; 3] = three!(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
     let first = f[1].cross(&f[2]);
     let j = f[0].dot(&first);
-    let on: [bool; LANES] = std::array::from_fn(|l| j[l] < COLLAPSE_J);
-    if !on.contains(&true) {
+    let on = mask(|l| j[l] < COLLAPSE_J);
+    if on.iter().all(|&m| m == 0.0) {
         return;
     }
     let cof = [first, f[2].cross(&f[0]), f[0].cross(&f[1])];
