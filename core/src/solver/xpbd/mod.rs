@@ -34,6 +34,7 @@ mod glue;
 mod lanes;
 mod restitution;
 mod rigid_contacts;
+mod torque;
 
 use self::crowding::Crowding;
 use super::body_contact::step_contacts_of;
@@ -135,6 +136,7 @@ pub(crate) struct Model {
     chunk_contact: Vec<(f64, V3, f64)>,
     capsules: Vec<(Capsule, Capsule)>,
     rigid_scratch: RigidScratch,
+    torque_scratch: torque::TorqueScratch,
     /// Per display-surface point: the last constraint pass's (force, depth, force from the
     /// capsules), for the contact log.
     point_contact: Vec<(V3, f64, V3)>,
@@ -297,6 +299,7 @@ impl Model {
             chunk_contact: vec![(0.0, V3::zeros(), 0.0); n.div_ceil(PAR_CHUNK)],
             capsules: Vec::new(),
             rigid_scratch: RigidScratch::default(),
+            torque_scratch: torque::TorqueScratch::default(),
             point_contact: vec![(V3::zeros(), 0.0, V3::zeros()); world.surface.len()],
             in_contact: Vec::new(),
             point_sums: vec![PointSums::default(); point_tasks],
@@ -660,7 +663,7 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         .cells
         .solve(&mut world.nodes.position, &model.inv_mass, dt);
     solve_springs(world, &model, dt);
-    cancel_internal_torque(world, &mut model);
+    torque::cancel_internal_torque(world, &mut model);
     model.glue.solve(&mut world.nodes.position, &model.inv_mass);
     model.begin_contacts();
     let bodies = body_contacts(world, &mut model, first, dt);
@@ -884,52 +887,6 @@ fn solve_springs(world: &mut World, model: &Model, dt: f64) {
         let dl = -(length - s.rest_length[i]) / (wsum + inv_dt2 / s.stiffness[i]);
         x[a] += n * (w[a] * dl);
         x[b] -= n * (w[b] * dl);
-    }
-}
-
-/// Stage 3c: internal forces exert no torque. Each projection of a rotation-invariant
-/// constraint keeps angular momentum about the positions it was evaluated at, but the sweep
-/// evaluates them at the moving intermediate positions, which leaks spin at a rate of about
-/// `ω² Δt` (6 % per second for a body turning once a second at 720 substeps/s). Per body, the
-/// angular impulse of the elastic corrections about the substep's start,
-/// `ΔL = Σ m (x_n − c) × (x − x̃)`, is removed by a rotation `δθ = I⁻¹ ΔL` of the
-/// corrections (bodies with pinned or path-bound nodes are left alone: their constraint forces
-/// are external).
-fn cancel_internal_torque(world: &mut World, model: &mut Model) {
-    let nodes = &mut world.nodes;
-    for body in &world.bodies {
-        let range = body.nodes.clone();
-        if range.is_empty()
-            || range
-                .clone()
-                .any(|i| model.inv_mass[i] <= 0.0 && nodes.mass[i] > 0.0)
-        {
-            continue;
-        }
-        let (mut mass, mut centre) = (0.0, V3::zeros());
-        for i in range.clone() {
-            mass += nodes.mass[i];
-            centre += model.previous[i] * nodes.mass[i];
-        }
-        if mass <= 0.0 {
-            continue;
-        }
-        centre /= mass;
-        let (mut torque, mut inertia) = (V3::zeros(), nalgebra::Matrix3::zeros());
-        for i in range.clone() {
-            let r = model.previous[i] - centre;
-            let m = nodes.mass[i];
-            torque += r.cross(&(nodes.position[i] - model.predicted[i])) * m;
-            inertia += (nalgebra::Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
-        }
-        let Some(turn) = inertia.try_inverse().map(|inv| inv * torque) else {
-            continue;
-        };
-        for i in range {
-            if nodes.mass[i] > 0.0 {
-                nodes.position[i] -= turn.cross(&(model.previous[i] - centre));
-            }
-        }
     }
 }
 
