@@ -53,29 +53,18 @@ pub fn rigid_motion_in(
     range: Range<usize>,
     scratch: &mut RigidScratch,
 ) -> RigidMotion {
-    let chunks = range.len().div_ceil(PAR_CHUNK);
-    let chunk = |c: usize| {
-        let start = range.start + c * PAR_CHUNK;
-        start..(start + PAR_CHUNK).min(range.end)
-    };
-    scratch
-        .first
-        .resize(chunks, (0.0, Vector3::zeros(), Vector3::zeros()));
-    team::for_each(Chunks::new(&mut scratch.first, 1), |c, out: &mut [_]| {
-        let (mut m, mut mx, mut mv) = (0.0, Vector3::zeros(), Vector3::zeros());
-        for i in chunk(c) {
-            m += nodes.mass[i];
-            mx += nodes.position[i] * nodes.mass[i];
-            mv += nodes.velocity[i] * nodes.mass[i];
-        }
-        out[0] = (m, mx, mv);
-    });
-    let (m, mx, mv) = scratch
-        .first
-        .iter()
-        .fold((0.0, Vector3::zeros(), Vector3::zeros()), |a, b| {
-            (a.0 + b.0, a.1 + b.1, a.2 + b.2)
-        });
+    let (m, mx, mv) = team::chunked_sum(
+        range.clone(),
+        PAR_CHUNK,
+        (0.0, Vector3::zeros(), Vector3::zeros()),
+        &mut scratch.first,
+        |(m, mx, mv), i| {
+            *m += nodes.mass[i];
+            *mx += nodes.position[i] * nodes.mass[i];
+            *mv += nodes.velocity[i] * nodes.mass[i];
+        },
+        |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2),
+    );
     if m <= 0.0 {
         return RigidMotion {
             centre: Vector3::zeros(),
@@ -86,25 +75,19 @@ pub fn rigid_motion_in(
         };
     }
     let (centre, velocity) = (mx / m, mv / m);
-    scratch
-        .second
-        .resize(chunks, (Matrix3::zeros(), Vector3::zeros()));
-    team::for_each(Chunks::new(&mut scratch.second, 1), |c, out: &mut [_]| {
-        let (mut inertia, mut momentum) = (Matrix3::zeros(), Vector3::zeros());
-        for i in chunk(c) {
+    let (inertia, momentum) = team::chunked_sum(
+        range,
+        PAR_CHUNK,
+        (Matrix3::zeros(), Vector3::zeros()),
+        &mut scratch.second,
+        |(inertia, momentum), i| {
             let d = nodes.position[i] - centre;
             let mi = nodes.mass[i];
-            inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
-            momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
-        }
-        out[0] = (inertia, momentum);
-    });
-    let (inertia, momentum) = scratch
-        .second
-        .iter()
-        .fold((Matrix3::zeros(), Vector3::zeros()), |a, b| {
-            (a.0 + b.0, a.1 + b.1)
-        });
+            *inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
+            *momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
+        },
+        |a, b| (a.0 + b.0, a.1 + b.1),
+    );
     let inv_inertia = inertia.try_inverse().unwrap_or_else(Matrix3::zeros);
     RigidMotion {
         centre,

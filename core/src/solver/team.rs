@@ -265,6 +265,32 @@ pub(crate) fn for_each<P: Parts>(parts: P, task: impl Fn(usize, P::Part) + Sync)
     }
 }
 
+/// The sum over the indices in `range`, cut into fixed chunks of `chunk` indices run on the
+/// team: each chunk starts from `zero` and `add`s its indices in order, then the chunks' sums
+/// are `combine`d in chunk order from `zero`. The chunks do not depend on the thread count, so
+/// neither do the bits. `partials` is the caller's scratch (kept so a step allocates nothing).
+pub(crate) fn chunked_sum<T: Copy + Send + Sync>(
+    range: std::ops::Range<usize>,
+    chunk: usize,
+    zero: T,
+    partials: &mut Vec<T>,
+    add: impl Fn(&mut T, usize) + Sync,
+    combine: impl Fn(T, T) -> T,
+) -> T {
+    let chunk = chunk.max(1);
+    partials.clear();
+    partials.resize(range.len().div_ceil(chunk), zero);
+    for_each(Chunks::new(partials, 1), |c, out: &mut [T]| {
+        let start = range.start + c * chunk;
+        let mut sum = zero;
+        for i in start..(start + chunk).min(range.end) {
+            add(&mut sum, i);
+        }
+        out[0] = sum;
+    });
+    partials.iter().fold(zero, |a, &b| combine(a, b))
+}
+
 /// Slices cut into numbered chunks for [`for_each`]: chunk `i` of each.
 ///
 /// # Safety

@@ -80,50 +80,35 @@ fn body_turn(
     scratch: &mut TorqueScratch,
 ) -> Option<(V3, V3)> {
     let nodes = &world.nodes;
-    let chunks = range.len().div_ceil(PAR_CHUNK);
-    let chunk = |c: usize| {
-        let start = range.start + c * PAR_CHUNK;
-        start..(start + PAR_CHUNK).min(range.end)
-    };
-    scratch.first.resize(chunks, (0.0, V3::zeros(), false));
-    team::for_each(Chunks::new(&mut scratch.first, 1), |c, out: &mut [_]| {
-        let (mut mass, mut moment, mut held) = (0.0, V3::zeros(), false);
-        for i in chunk(c) {
-            held |= model.inv_mass[i] <= 0.0 && nodes.mass[i] > 0.0;
-            mass += nodes.mass[i];
-            moment += model.previous[i] * nodes.mass[i];
-        }
-        out[0] = (mass, moment, held);
-    });
-    let (mass, moment, held) = scratch
-        .first
-        .iter()
-        .fold((0.0, V3::zeros(), false), |a, b| {
-            (a.0 + b.0, a.1 + b.1, a.2 | b.2)
-        });
+    let (mass, moment, held) = team::chunked_sum(
+        range.clone(),
+        PAR_CHUNK,
+        (0.0, V3::zeros(), false),
+        &mut scratch.first,
+        |(mass, moment, held), i| {
+            *held |= model.inv_mass[i] <= 0.0 && nodes.mass[i] > 0.0;
+            *mass += nodes.mass[i];
+            *moment += model.previous[i] * nodes.mass[i];
+        },
+        |a, b| (a.0 + b.0, a.1 + b.1, a.2 | b.2),
+    );
     if held || mass <= 0.0 {
         return None;
     }
     let centre = moment / mass;
-    scratch
-        .second
-        .resize(chunks, (V3::zeros(), Matrix3::zeros()));
-    team::for_each(Chunks::new(&mut scratch.second, 1), |c, out: &mut [_]| {
-        let (mut torque, mut inertia) = (V3::zeros(), Matrix3::zeros());
-        for i in chunk(c) {
+    let (torque, inertia) = team::chunked_sum(
+        range,
+        PAR_CHUNK,
+        (V3::zeros(), Matrix3::zeros()),
+        &mut scratch.second,
+        |(torque, inertia), i| {
             let r = model.previous[i] - centre;
             let m = nodes.mass[i];
-            torque += r.cross(&(nodes.position[i] - model.predicted[i])) * m;
-            inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
-        }
-        out[0] = (torque, inertia);
-    });
-    let (torque, inertia) = scratch
-        .second
-        .iter()
-        .fold((V3::zeros(), Matrix3::zeros()), |a, b| {
-            (a.0 + b.0, a.1 + b.1)
-        });
+            *torque += r.cross(&(nodes.position[i] - model.predicted[i])) * m;
+            *inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
+        },
+        |a, b| (a.0 + b.0, a.1 + b.1),
+    );
     let turn = inertia.try_inverse()? * torque;
     Some((centre, turn))
 }
