@@ -368,21 +368,10 @@ impl CellSet {
             let hydro = &self.hydro_alpha[range.clone()];
             let dev = &self.dev_alpha[range.clone()];
             let axis = &self.axis_root[range.clone()];
-            if Some(colour) == self.serial_colour {
-                for j in 0..nodes.len() {
-                    let mut local = gather(&nodes[j], x);
-                    let wl = nodes[j].map(|n| w[n as usize]);
-                    let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                    solve_cell(&mut local, &wl, shape[j], alphas, &axis[j]);
-                    for (k, &n) in nodes[j].iter().enumerate() {
-                        x[n as usize] = local[k];
-                    }
-                }
-                continue;
-            }
             let xs = Disjoint::new(&mut *x);
             // SAFETY (every `get`, `set` and `solve_cubes` of this colour): a node belongs
-            // to one cell of the colour, so no two tasks read or write the same one.
+            // to one cell of the colour, so no two tasks read or write the same one; the
+            // serial colour's cells, which may share nodes, run one after the other here.
             #[allow(unsafe_code)]
             let solve_one = |j: usize| {
                 let mut local = nodes[j].map(|n| unsafe { xs.get(n as usize) });
@@ -393,6 +382,10 @@ impl CellSet {
                     unsafe { xs.set(n as usize, local[k]) };
                 }
             };
+            if Some(colour) == self.serial_colour {
+                (0..nodes.len()).for_each(solve_one);
+                continue;
+            }
             let solve_group = |group: usize| {
                 let first = group * LANES;
                 let end = (first + LANES).min(nodes.len());

@@ -304,7 +304,8 @@ fn contact_points_by_colour(
                     first: groups.get(t * per_task).map_or(0, |g| g.start),
                     ..PointSums::default()
                 };
-                for (g, group) in groups.iter().enumerate().take(end).skip(t * per_task) {
+                let mine = t * per_task..end;
+                for (g, group) in mine.clone().zip(&groups[mine]) {
                     if group_clear(first_group + g, group.start as usize) {
                         continue;
                     }

@@ -34,16 +34,16 @@ pub(super) fn cancel_internal_torque(world: &mut World, model: &mut Model) {
         predicted,
         ..
     } = model;
+    let start = Start {
+        inv_mass,
+        previous,
+        predicted,
+    };
     for body in &world.bodies {
         let range = body.nodes.clone();
         if range.is_empty() {
             continue;
         }
-        let start = Start {
-            inv_mass,
-            previous,
-            predicted,
-        };
         let Some((centre, turn)) = body_turn(world, &start, range.clone(), scratch) else {
             continue;
         };
