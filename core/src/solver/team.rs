@@ -392,6 +392,33 @@ impl<'a, T: Copy + Send> Disjoint<'a, T> {
         unsafe { self.ptr.add(i).read() }
     }
 
+    /// How many elements there are.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The element at `i`, which the caller has checked is in bounds.
+    ///
+    /// # Safety
+    /// `i < self.len()`, and no other task of the pass touches index `i`.
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn get_unchecked(&self, i: usize) -> T {
+        debug_assert!(i < self.len);
+        // SAFETY: the caller's; as for `get` otherwise.
+        unsafe { self.ptr.add(i).read() }
+    }
+
+    /// Write `value` at `i`, which the caller has checked is in bounds.
+    ///
+    /// # Safety
+    /// `i < self.len()`, and no other task of the pass touches index `i`.
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn set_unchecked(&self, i: usize, value: T) {
+        debug_assert!(i < self.len);
+        // SAFETY: the caller's; as for `get` otherwise.
+        unsafe { self.ptr.add(i).write(value) }
+    }
+
     /// Write `value` at `i` (panics out of bounds).
     ///
     /// # Safety
