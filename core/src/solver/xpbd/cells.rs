@@ -98,6 +98,11 @@ pub(crate) struct CellSet {
     /// Cells of each colour; the last one may be `serial` (cells that share nodes).
     colours: Vec<Range<usize>>,
     serial_colour: Option<usize>,
+    /// Runs of up to [`LANES`] cells of one colour and one kind (cubes of one corner parity,
+    /// or tets) that the lanes solve together, colour after colour.
+    groups: Vec<Range<usize>>,
+    /// The groups of each colour (ranges of `groups`).
+    colour_groups: Vec<Range<usize>>,
     /// Shortest rest edge of any cell, m (0 without cells).
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
@@ -238,7 +243,7 @@ impl CellSet {
             })
             .collect();
         // Within a colour, cube cells of one corner parity side by side (then the others,
-        // then tets): four consecutive cubes of one parity are solved as one lane group.
+        // then tets): up to eight consecutive cubes of one parity are one lane group.
         let kind = |shape: &Shape| match shape {
             Shape::Cube { odd: false, .. } => 0,
             Shape::Cube { odd: true, .. } => 1,
@@ -264,6 +269,24 @@ impl CellSet {
             }
             self.colours.push(start..end);
             start = end;
+        }
+        self.groups.clear();
+        self.colour_groups.clear();
+        for colour in &self.colours {
+            let first_group = self.groups.len();
+            let mut start = colour.start;
+            while start < colour.end {
+                let of_kind = kind(&self.shape[start]);
+                let run = &self.shape[start..colour.end];
+                let end = start + run.partition_point(|s| kind(s) == of_kind);
+                let mut group = start;
+                while group < end {
+                    self.groups.push(group..(group + LANES).min(end));
+                    group = (group + LANES).min(end);
+                }
+                start = end;
+            }
+            self.colour_groups.push(first_group..self.groups.len());
         }
     }
 
@@ -386,19 +409,12 @@ impl CellSet {
                 (0..nodes.len()).for_each(solve_one);
                 continue;
             }
-            let solve_group = |group: usize| {
-                let first = group * LANES;
-                let end = (first + LANES).min(nodes.len());
-                let parity = |j: usize| match shape[j] {
-                    Shape::Cube { odd, .. } => Some(odd),
-                    Shape::Tet { .. } => None,
+            let solve_group = |group: &Range<usize>| {
+                let (first, end) = (group.start - range.start, group.end - range.start);
+                let odd = match shape[first] {
+                    Shape::Cube { odd, .. } => odd,
+                    Shape::Tet { .. } => return (first..end).for_each(solve_one),
                 };
-                let odd = parity(first);
-                let lanes = odd.is_some() && (first..end).all(|j| parity(j) == odd);
-                if !lanes {
-                    (first..end).for_each(solve_one);
-                    return;
-                }
                 // A short group's other lanes repeat its last cell (see [`Gather`]).
                 let cell = |k: usize| first + k.min(end - first - 1);
                 let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
@@ -412,7 +428,7 @@ impl CellSet {
                     axis_root: std::array::from_fn(|i| {
                         std::array::from_fn(|k| axis[cell(k)][i] as f32)
                     }),
-                    odd: odd == Some(true),
+                    odd,
                 };
                 let from = Gather {
                     nodes: &nodes[first..end],
@@ -426,10 +442,11 @@ impl CellSet {
             };
             // A group takes about a microsecond and a half: hand out GROUPS_PER_TASK of them
             // at a time (a 16³ lattice's colour, 53 groups, is 14 tasks).
-            let groups = nodes.len().div_ceil(LANES);
-            team::for_each(Tasks(groups.div_ceil(GROUPS_PER_TASK)), |task, ()| {
+            let groups = &self.groups[self.colour_groups[colour].clone()];
+            team::for_each(Tasks(groups.len().div_ceil(GROUPS_PER_TASK)), |task, ()| {
                 let first = task * GROUPS_PER_TASK;
-                (first..(first + GROUPS_PER_TASK).min(groups)).for_each(solve_group);
+                let mine = first..(first + GROUPS_PER_TASK).min(groups.len());
+                groups[mine].iter().for_each(solve_group);
             });
         }
     }
@@ -1127,28 +1144,28 @@ mod tests {
         }
     }
 
-    #[test]
-    fn lattice_cells_take_eight_colours() {
+    /// The cells `keep` picks of an `n`×`n`×`n` lattice of unit cubes, finished.
+    fn lattice_set(n: usize, keep: impl Fn(usize, usize, usize) -> bool) -> CellSet {
         let rubber = Material::preset("rubber").unwrap();
         let mut set = CellSet::default();
-        let n = 3usize; // 3×3×3 cells, 4×4×4 nodes
-        let id = |i: usize, j: usize, k: usize| (i + 4 * (j + 4 * k)) as u32;
+        let side = n + 1;
+        let id = |i: usize, j: usize, k: usize| (i + side * (j + side * k)) as u32;
         for k in 0..n {
             for j in 0..n {
                 for i in 0..n {
-                    let nodes = std::array::from_fn(|c| {
-                        id(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
-                    });
-                    let rest = std::array::from_fn(|c| {
-                        V3::new(
-                            (i + (c & 1)) as f64,
-                            (j + ((c >> 1) & 1)) as f64,
-                            (k + ((c >> 2) & 1)) as f64,
-                        )
-                    });
+                    if !keep(i, j, k) {
+                        continue;
+                    }
+                    let corner = |c: usize| (i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
                     set.push(CellInput {
-                        nodes,
-                        rest,
+                        nodes: std::array::from_fn(|c| {
+                            let (a, b, d) = corner(c);
+                            id(a, b, d)
+                        }),
+                        rest: std::array::from_fn(|c| {
+                            let (a, b, d) = corner(c);
+                            V3::new(a as f64, b as f64, d as f64)
+                        }),
                         material: &rubber,
                         stiffness_scale: 1.0,
                         axis_scale: [1.0; 3],
@@ -1156,8 +1173,43 @@ mod tests {
                 }
             }
         }
-        set.finish(64);
+        set.finish(side * side * side);
+        set
+    }
+
+    #[test]
+    fn lattice_cells_take_eight_colours() {
+        let set = lattice_set(3, |_, _, _| true);
         assert_eq!(set.colours.len(), 8);
         assert_eq!(set.serial_colour, None);
+    }
+
+    /// A sparse lattice, whose colours hold cubes of both corner parities: each colour's
+    /// lane groups cover its cells once, in order, each group one parity and at most
+    /// [`LANES`] cells, and a parity's run splits into as few groups as it can.
+    #[test]
+    fn lane_groups_keep_to_one_parity() {
+        let set = lattice_set(7, |i, j, k| (i * 7 + j * 3 + k * 5) % 4 != 0);
+        let parity = |j: usize| match set.shape[j] {
+            Shape::Cube { odd, .. } => odd,
+            Shape::Tet { .. } => panic!("a lattice has cubes only"),
+        };
+        let mut mixed_colours = 0;
+        for (colour, range) in set.colours.iter().enumerate() {
+            let groups = &set.groups[set.colour_groups[colour].clone()];
+            let mut next = range.start;
+            for g in groups {
+                assert_eq!(g.start, next, "colour {colour}");
+                assert!(!g.is_empty() && g.len() <= LANES);
+                assert!(g.clone().all(|j| parity(j) == parity(g.start)));
+                next = g.end;
+            }
+            assert_eq!(next, range.end, "colour {colour}");
+            let odd = range.clone().filter(|&j| parity(j)).count();
+            let even = range.len() - odd;
+            mixed_colours += usize::from(odd > 0 && even > 0);
+            assert_eq!(groups.len(), odd.div_ceil(LANES) + even.div_ceil(LANES));
+        }
+        assert!(mixed_colours > 0, "no colour holds both parities");
     }
 }
