@@ -231,6 +231,16 @@ fn plane_partner(plane: &Plane, up: &Vector3<f64>) -> ContactPartner {
 /// manipulators.
 pub(crate) type PointContact = (Vector3<f64>, f64, Vector3<f64>);
 
+/// What a step's surface contact pass found for the display-surface points.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SurfacePass<'a> {
+    /// Per point, its [`PointContact`] (a point that did not touch has depth 0).
+    pub contacts: &'a [PointContact],
+    /// The points that touched, in the order the pass visited them, where the pass listed
+    /// them: then only these are read, not every point's depth.
+    pub touching: Option<&'a [u32]>,
+}
+
 /// What the rigid-surface contacts need from the world, borrowed for one observation.
 pub(crate) struct RigidScene<'a> {
     pub layer: &'a ContactLayer,
@@ -242,10 +252,9 @@ pub(crate) struct RigidScene<'a> {
     /// step's starting positions), `dt` for Newmark-β (its contacts take predicted positions,
     /// so they act a step before the starting position reaches a surface).
     pub lead: f64,
-    /// The step's surface contact pass, if it ran at the observed state: per display-surface
-    /// point, its (force, deepest penetration, force from the manipulators). Only the points
-    /// it found touching are looked at again.
-    pub points: Option<&'a [PointContact]>,
+    /// The step's surface contact pass, if it ran at the observed state. Only the points it
+    /// found touching are looked at again.
+    pub points: Option<SurfacePass<'a>>,
     /// Per block of [`CONTACT_BLOCK`] nodes, whether its nodes' box reaches a plane or capsule
     /// at the observed state (see [`super::contact::box_may_touch`]); without, each body's box is tested.
     pub node_blocks: Option<&'a [bool]>,
@@ -336,11 +345,11 @@ pub(crate) fn observe_rigid(
 }
 
 /// Log the rigid-surface contacts of the display-surface points. With the contact pass's
-/// results (`scene.points`), only the points it found touching are looked at again, and with
-/// a single plane, no capsule and no lead their force is the pass's own: the pass evaluated
-/// the same contact law on the same point, layer and mass with that one plane (the same
-/// floating-point operations), so the log takes it as it is. Otherwise every point is
-/// evaluated surface by surface.
+/// results (`scene.points`), only the points it found touching are looked at again (those it
+/// listed, or every point's depth read), and with a single plane, no capsule and no lead
+/// their force is the pass's own: the pass evaluated the same contact law on the same point,
+/// layer and mass with that one plane (the same floating-point operations), so the log takes
+/// it as it is. Otherwise every point is evaluated surface by surface.
 pub(crate) fn observe_surface(
     log: &mut ContactLog,
     scene: &RigidScene,
@@ -352,15 +361,15 @@ pub(crate) fn observe_surface(
         ([plane], true, true) => Some((plane, plane_partner(plane, &scene.up))),
         _ => None,
     };
-    for i in 0..surface.len() {
-        if let Some(points) = scene.points {
-            let (force, depth, _) = points.get(i).copied().unwrap_or_default();
+    let mut observe = |i: usize| {
+        if let Some(pass) = scene.points {
+            let (force, depth, _) = pass.contacts.get(i).copied().unwrap_or_default();
             if depth <= 0.0 {
-                continue;
+                return;
             }
             if let Some((plane, partner)) = only_plane {
                 log.add(surface.body[i] as usize, partner, force, plane.normal);
-                continue;
+                return;
             }
         }
         let (x, v, mass) = point_kinematics(surface, i, nodes, velocities);
@@ -369,6 +378,13 @@ pub(crate) fn observe_surface(
             ..*scene.layer
         };
         scene.log_point(log, surface.body[i] as usize, &layer, x, v, mass);
+    };
+    match scene.points.and_then(|pass| pass.touching) {
+        Some(touching) => touching
+            .iter()
+            .filter(|&&i| (i as usize) < surface.len())
+            .for_each(|&i| observe(i as usize)),
+        None => (0..surface.len()).for_each(observe),
     }
 }
 

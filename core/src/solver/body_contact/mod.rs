@@ -393,7 +393,7 @@ pub(crate) fn step_contacts_of(
     world: &mut World,
     dt: f64,
     lead: f64,
-    points: Option<&[super::contact_log::PointContact]>,
+    points: Option<super::contact_log::SurfacePass>,
 ) {
     let mut caps = std::mem::take(&mut world.contact_log.capsules_scratch);
     caps.clear();

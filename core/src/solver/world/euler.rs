@@ -3,6 +3,7 @@
 //! damping, velocity dispersion, position update.
 
 use super::*;
+use crate::solver::contact_log::SurfacePass;
 use crate::solver::integrator::Integrate;
 
 /// The papers' integrator behind [`Integrate`]: the explicit step, then the trajectory
@@ -261,7 +262,10 @@ impl World {
                 up: settings.up,
                 dt,
                 lead: 0.0,
-                points: (surface_contact && p.rigid_broad_phase).then_some(&p.point_contact[..]),
+                points: (surface_contact && p.rigid_broad_phase).then_some(SurfacePass {
+                    contacts: &p.point_contact,
+                    touching: None,
+                }),
                 node_blocks: (node_blocks && p.rigid_broad_phase).then_some(&p.block_near[..]),
             };
             step_contacts(

@@ -38,6 +38,7 @@ mod torque;
 
 use self::crowding::Crowding;
 use super::body_contact::step_contacts_of;
+use super::contact_log::SurfacePass;
 use super::deformation_damping::RigidScratch;
 use super::diagnostics::StepStats;
 use super::integrator::{FrameAccumulator, Integrate};
@@ -105,6 +106,10 @@ pub(crate) struct Model {
     /// whose nodes are all clear of the surfaces ([`contact::Surfaces::clear_of_hull`]) has
     /// no point in contact and is skipped whole.
     group_in_hull: Vec<bool>,
+    /// Per group of `points`: whether its points all weigh the same eight distinct nodes in
+    /// the same order (a cell's points), so that the contact pass reads those nodes once for
+    /// the group and writes them back once.
+    group_one_cell: Vec<bool>,
     /// Springs solved as distance constraints (bodies without cells).
     springs: Vec<usize>,
     /// Shortest rest edge of any cell or constraint spring, m.
@@ -265,6 +270,15 @@ impl Model {
             .iter()
             .map(|g| in_one_hull(&visits[g.start as usize..g.end as usize]))
             .collect();
+        let group_one_cell = points
+            .groups
+            .iter()
+            .map(|g| {
+                let group = &visits[g.start as usize..g.end as usize];
+                let distinct = |ids: &[u32; 8]| (1..8).all(|k| !ids[..k].contains(&ids[k]));
+                distinct(&group[0].nodes) && group.iter().all(|v| v.nodes == group[0].nodes)
+            })
+            .collect();
         let s = &world.springs;
         let shortest_spring = springs
             .iter()
@@ -280,6 +294,7 @@ impl Model {
             points,
             visits,
             group_in_hull,
+            group_one_cell,
             springs,
             shortest_edge,
             previous: vec![V3::zeros(); n],
@@ -701,7 +716,10 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
 /// touching are looked at, and with a lone floor its constraint force is logged as it is).
 fn log_contacts(world: &mut World, model: &Model, dt: f64) {
     let fresh = model.point_contact.len() == world.surface.len() && model.logged_once;
-    let points = fresh.then_some(&model.point_contact[..]);
+    let points = fresh.then_some(SurfacePass {
+        contacts: &model.point_contact,
+        touching: Some(&model.in_contact),
+    });
     step_contacts_of(world, dt, 0.0, points);
 }
 
