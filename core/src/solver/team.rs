@@ -397,6 +397,12 @@ impl<'a, T: Copy + Send> Disjoint<'a, T> {
         self.len
     }
 
+    /// Where the elements start, for a caller that reads and writes them with wider loads
+    /// and stores (under the contracts of [`Self::get_unchecked`] and [`Self::set_unchecked`]).
+    pub(crate) fn as_ptr(&self) -> *mut T {
+        self.ptr
+    }
+
     /// The element at `i`, which the caller has checked is in bounds.
     ///
     /// # Safety

@@ -35,7 +35,7 @@
 //! local copies of their eight nodes and written back in cell order, so any thread count gives
 //! the same bits.
 
-use super::lanes::{solve_cubes, Cubes, Gather, LANES};
+use super::lanes::{highest_node, solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
 use crate::solver::team::{self, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
@@ -103,6 +103,12 @@ pub(crate) struct CellSet {
     groups: Vec<Range<usize>>,
     /// The groups of each colour (ranges of `groups`).
     colour_groups: Vec<Range<usize>>,
+    /// Per group of cubes, its lanes' parameters for substeps of `lanes_dt` seconds and its
+    /// highest node (`None` for tets): made again when the substep's length changes, not at
+    /// every group of every substep.
+    lanes: Vec<Option<(Cubes, u32)>>,
+    /// The substep length `lanes` are for (NaN: not made).
+    lanes_dt: f64,
     /// Shortest rest edge of any cell, m (0 without cells).
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
@@ -288,6 +294,37 @@ impl CellSet {
             }
             self.colour_groups.push(first_group..self.groups.len());
         }
+        self.lanes.clear();
+        self.lanes_dt = f64::NAN;
+    }
+
+    /// Make the groups' lane parameters ([`Self::lanes`]) for substeps of `dt` seconds.
+    fn make_lanes(&mut self, dt: f64) {
+        let inv_dt2 = 1.0 / (dt * dt);
+        let lanes = self.groups.iter().map(|group| {
+            let odd = match self.shape[group.start] {
+                Shape::Cube { odd, .. } => odd,
+                Shape::Tet { .. } => return None,
+            };
+            // A short group's other lanes repeat its last cell (see [`Gather`]).
+            let cell = |k: usize| group.start + k.min(group.len() - 1);
+            let inv_h = std::array::from_fn(|k| match self.shape[cell(k)] {
+                Shape::Cube { inv_h, .. } => inv_h as f32,
+                Shape::Tet { .. } => 0.0,
+            });
+            let cubes = Cubes {
+                inv_h,
+                hydro: std::array::from_fn(|k| (self.hydro_alpha[cell(k)] * inv_dt2) as f32),
+                dev: std::array::from_fn(|k| (self.dev_alpha[cell(k)] * inv_dt2) as f32),
+                axis_root: std::array::from_fn(|i| {
+                    std::array::from_fn(|k| self.axis_root[cell(k)][i] as f32)
+                }),
+                odd,
+            };
+            Some((cubes, highest_node(&self.nodes[group.clone()])))
+        });
+        self.lanes = lanes.collect();
+        self.lanes_dt = dt;
     }
 
     /// The display-surface points (their cells' node ids, joint followers already resolved)
@@ -385,6 +422,9 @@ impl CellSet {
     /// `dt` seconds.
     pub(crate) fn solve(&mut self, x: &mut [V3], w: &[f64], dt: f64) {
         let inv_dt2 = 1.0 / (dt * dt);
+        if self.lanes_dt != dt || self.lanes.len() != self.groups.len() {
+            self.make_lanes(dt);
+        }
         for (colour, range) in self.colours.iter().enumerate() {
             let nodes = &self.nodes[range.clone()];
             let shape = &self.shape[range.clone()];
@@ -409,44 +449,33 @@ impl CellSet {
                 (0..nodes.len()).for_each(solve_one);
                 continue;
             }
-            let solve_group = |group: &Range<usize>| {
+            let solve_group = |(group, lanes): (&Range<usize>, &Option<(Cubes, u32)>)| {
                 let (first, end) = (group.start - range.start, group.end - range.start);
-                let odd = match shape[first] {
-                    Shape::Cube { odd, .. } => odd,
-                    Shape::Tet { .. } => return (first..end).for_each(solve_one),
-                };
-                // A short group's other lanes repeat its last cell (see [`Gather`]).
-                let cell = |k: usize| first + k.min(end - first - 1);
-                let inv_h = std::array::from_fn(|k| match shape[cell(k)] {
-                    Shape::Cube { inv_h, .. } => inv_h as f32,
-                    Shape::Tet { .. } => 0.0,
-                });
-                let cubes = Cubes {
-                    inv_h,
-                    hydro: std::array::from_fn(|k| (hydro[cell(k)] * inv_dt2) as f32),
-                    dev: std::array::from_fn(|k| (dev[cell(k)] * inv_dt2) as f32),
-                    axis_root: std::array::from_fn(|i| {
-                        std::array::from_fn(|k| axis[cell(k)][i] as f32)
-                    }),
-                    odd,
+                let Some((cubes, highest)) = lanes else {
+                    return (first..end).for_each(solve_one);
                 };
                 let from = Gather {
                     nodes: &nodes[first..end],
+                    highest: *highest,
                     x: &xs,
                     w,
                 };
                 #[allow(unsafe_code)]
                 unsafe {
-                    solve_cubes(&from, &cubes)
+                    solve_cubes(&from, cubes)
                 };
             };
             // A group takes about a microsecond and a half: hand out GROUPS_PER_TASK of them
             // at a time (a 16³ lattice's colour, 53 groups, is 14 tasks).
             let groups = &self.groups[self.colour_groups[colour].clone()];
+            let lanes = &self.lanes[self.colour_groups[colour].clone()];
             team::for_each(Tasks(groups.len().div_ceil(GROUPS_PER_TASK)), |task, ()| {
                 let first = task * GROUPS_PER_TASK;
                 let mine = first..(first + GROUPS_PER_TASK).min(groups.len());
-                groups[mine].iter().for_each(solve_group);
+                groups[mine.clone()]
+                    .iter()
+                    .zip(&lanes[mine])
+                    .for_each(solve_group);
             });
         }
     }

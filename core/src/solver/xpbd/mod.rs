@@ -31,6 +31,7 @@ mod cells;
 mod contact;
 mod crowding;
 mod glue;
+mod lane_io;
 mod lanes;
 mod restitution;
 mod rigid_contacts;
