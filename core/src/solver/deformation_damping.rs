@@ -44,7 +44,44 @@ pub fn rigid_motion(nodes: &NodeState, range: Range<usize>) -> RigidMotion {
 #[derive(Debug, Clone, Default)]
 pub struct RigidScratch {
     first: Vec<(f64, Vector3<f64>, Vector3<f64>)>,
-    second: Vec<(Matrix3<f64>, Vector3<f64>)>,
+    second: Vec<(SecondMoment, Vector3<f64>)>,
+}
+
+/// A sum of point masses' second moments `Σ m r rᵀ`, kept as its six distinct entries: the
+/// inertia about the same point is `tr(S) 1 − S` ([`Self::inertia`]). Summed as full 3 × 3
+/// matrices `m (|r|² 1 − r rᵀ)`, a node took 50 floating-point operations instead of 9.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct SecondMoment {
+    /// `xx, yy, zz, xy, xz, yz`.
+    sums: [f64; 6],
+}
+
+impl SecondMoment {
+    /// Add a mass `m` at `r`.
+    #[inline(always)]
+    pub(crate) fn add(&mut self, r: &Vector3<f64>, m: f64) {
+        let mr = r * m;
+        let s = &mut self.sums;
+        s[0] += mr.x * r.x;
+        s[1] += mr.y * r.y;
+        s[2] += mr.z * r.z;
+        s[3] += mr.x * r.y;
+        s[4] += mr.x * r.z;
+        s[5] += mr.y * r.z;
+    }
+
+    /// The sum of two sums.
+    pub(crate) fn plus(self, o: SecondMoment) -> SecondMoment {
+        SecondMoment {
+            sums: std::array::from_fn(|i| self.sums[i] + o.sums[i]),
+        }
+    }
+
+    /// The inertia tensor about the point the moments are taken about.
+    pub(crate) fn inertia(&self) -> Matrix3<f64> {
+        let [xx, yy, zz, xy, xz, yz] = self.sums;
+        Matrix3::new(yy + zz, -xy, -xz, -xy, xx + zz, -yz, -xz, -yz, xx + yy)
+    }
 }
 
 /// [`rigid_motion`] with reusable buffers.
@@ -75,20 +112,23 @@ pub fn rigid_motion_in(
         };
     }
     let (centre, velocity) = (mx / m, mv / m);
-    let (inertia, momentum) = team::chunked_sum(
+    let (moments, momentum) = team::chunked_sum(
         range,
         PAR_CHUNK,
-        (Matrix3::zeros(), Vector3::zeros()),
+        (SecondMoment::default(), Vector3::zeros()),
         &mut scratch.second,
-        |(inertia, momentum), i| {
+        |(moments, momentum), i| {
             let d = nodes.position[i] - centre;
             let mi = nodes.mass[i];
-            *inertia += (Matrix3::identity() * d.norm_squared() - d * d.transpose()) * mi;
+            moments.add(&d, mi);
             *momentum += d.cross(&(nodes.velocity[i] - velocity)) * mi;
         },
-        |a, b| (a.0 + b.0, a.1 + b.1),
+        |a, b| (a.0.plus(b.0), a.1 + b.1),
     );
-    let inv_inertia = inertia.try_inverse().unwrap_or_else(Matrix3::zeros);
+    let inv_inertia = moments
+        .inertia()
+        .try_inverse()
+        .unwrap_or_else(Matrix3::zeros);
     RigidMotion {
         centre,
         velocity,
@@ -154,6 +194,13 @@ mod tests {
             inv_mass: vec![0.5; 8],
         };
         let r = rigid_motion(&nodes, 0..8);
+        // 2 kg at each corner of a unit cube: Σ m (y² + z²) = 16 · 0.5 about each axis
+        // through the centre, no products of inertia.
+        let inertia = r.inv_inertia.try_inverse().unwrap();
+        assert!(
+            (inertia - Matrix3::identity() * 8.0).norm() < 1e-12,
+            "{inertia}"
+        );
         assert!((r.centre - centre).norm() < 1e-12);
         assert!((r.velocity - v0).norm() < 1e-12);
         assert!((r.angular_velocity - omega).norm() < 1e-12);

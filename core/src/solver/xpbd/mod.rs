@@ -107,10 +107,12 @@ pub(crate) struct Model {
     /// whose nodes are all clear of the surfaces ([`contact::Surfaces::clear_of_hull`]) has
     /// no point in contact and is skipped whole.
     group_in_hull: Vec<bool>,
-    /// Per group of `points`: whether its points all weigh the same eight distinct nodes in
-    /// the same order (a cell's points), so that the contact pass reads those nodes once for
-    /// the group and writes them back once.
-    group_one_cell: Vec<bool>,
+    /// Per group of `points` whose points all weigh the same eight distinct nodes in the
+    /// same order (a cell's points), the farthest any of them can be from the first node
+    /// (their largest `reach`): the contact pass reads those nodes once for the group, skips
+    /// the group whole when its first node is that far from every surface, and writes the
+    /// nodes back once. `None` for other groups.
+    group_one_cell: Vec<Option<f64>>,
     /// Springs solved as distance constraints (bodies without cells).
     springs: Vec<usize>,
     /// Shortest rest edge of any cell or constraint spring, m.
@@ -277,7 +279,10 @@ impl Model {
             .map(|g| {
                 let group = &visits[g.start as usize..g.end as usize];
                 let distinct = |ids: &[u32; 8]| (1..8).all(|k| !ids[..k].contains(&ids[k]));
-                distinct(&group[0].nodes) && group.iter().all(|v| v.nodes == group[0].nodes)
+                let one =
+                    distinct(&group[0].nodes) && group.iter().all(|v| v.nodes == group[0].nodes);
+                let reach = group.iter().map(|v| v.reach).fold(0.0, f64::max);
+                one.then_some(reach)
             })
             .collect();
         let s = &world.springs;

@@ -363,13 +363,19 @@ fn contact_points_by_colour(
                 let mine = t * per_task..end;
                 for (g, group) in mine.clone().zip(&groups[mine]) {
                     let g = first_group + g;
-                    if !group_one_cell[g] {
+                    let Some(reach) = group_one_cell[g] else {
                         for o in group.start..group.end {
                             visit(o as usize, &mut task);
                         }
                         continue;
+                    };
+                    // Every point of the group would find itself beyond reach (it tests the
+                    // same node, at a reach no larger): skipped with one test.
+                    let ids = &visits[group.start as usize].nodes;
+                    if surfaces.beyond_reach(&at(ids[0]), reach) {
+                        continue;
                     }
-                    let corners = visits[group.start as usize].nodes.map(at);
+                    let corners = ids.map(at);
                     // A cell's group whose nodes are all clear of the surfaces has no point
                     // that touches.
                     if !(group_in_hull[g] && surfaces.clear_of_hull(&corners)) {
@@ -445,8 +451,8 @@ mod tests {
         by_cell.step(1e-4);
         let mut by_point = by_cell.clone();
         let model = by_point.xpbd.as_mut().unwrap();
-        assert!(model.group_one_cell.iter().filter(|&&one| one).count() > 10);
-        model.group_one_cell.fill(false);
+        assert!(model.group_one_cell.iter().flatten().count() > 10);
+        model.group_one_cell.fill(None);
         let mut touched = 0;
         for _ in 0..200 {
             let dt = 1.0 / 2400.0;

@@ -15,9 +15,9 @@
 //! order, so any thread count gives the same bits.
 
 use super::{Model, V3};
+use crate::solver::deformation_damping::SecondMoment;
 use crate::solver::team::{self, Chunks};
 use crate::solver::{World, PAR_CHUNK};
-use nalgebra::Matrix3;
 use std::ops::Range;
 
 /// Per-chunk partial sums, kept between substeps so the step allocates nothing.
@@ -25,9 +25,9 @@ use std::ops::Range;
 pub(super) struct TorqueScratch {
     /// Mass, mass-weighted start positions, and whether the chunk holds a node held in place.
     first: Vec<(f64, V3, bool)>,
-    /// Angular impulse of the corrections and inertia, about the body's centre, and the
-    /// corrections' impulse.
-    second: Vec<(V3, Matrix3<f64>, V3)>,
+    /// Angular impulse of the corrections and second moments, about the body's centre, and
+    /// the corrections' impulse.
+    second: Vec<(V3, SecondMoment, V3)>,
 }
 
 /// Remove each body's net angular impulse of the elastic corrections (see the module).
@@ -104,21 +104,21 @@ fn body_turn(
         return None;
     }
     let centre = moment / mass;
-    let (torque, inertia, impulse) = team::chunked_sum(
+    let (torque, moments, impulse) = team::chunked_sum(
         range,
         PAR_CHUNK,
-        (V3::zeros(), Matrix3::zeros(), V3::zeros()),
+        (V3::zeros(), SecondMoment::default(), V3::zeros()),
         &mut scratch.second,
-        |(torque, inertia, impulse), i| {
+        |(torque, moments, impulse), i| {
             let r = model.previous[i] - centre;
             let m = nodes.mass[i];
             let correction = nodes.position[i] - model.predicted[i];
             *torque += r.cross(&correction) * m;
-            *inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
+            moments.add(&r, m);
             *impulse += correction * m;
         },
-        |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2),
+        |a, b| (a.0 + b.0, a.1.plus(b.1), a.2 + b.2),
     );
-    let turn = inertia.try_inverse()? * torque;
+    let turn = moments.inertia().try_inverse()? * torque;
     Some((centre, turn, impulse / mass))
 }
