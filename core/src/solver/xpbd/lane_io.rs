@@ -22,66 +22,26 @@ fn slot(k: usize, axis: usize, lane: usize) -> usize {
     (k * 3 + axis) * LANES + lane
 }
 
-/// Write the nodes of the group `nodes` (a cell a lane) relative to each cell's first node
-/// into `corners` (laid out as [`slot`] says) and their inverse masses into `masses` (`f32`
-/// number `k·LANES + l` for corner `k` of lane `l`).
-///
-/// # Safety
-/// Every node of `nodes` is below `x.len()` and `w.len()`, no other task of the pass touches
-/// these nodes, and `corners` and `masses` have room for `24·LANES` and `8·LANES` values.
-#[allow(unsafe_code)]
-#[inline(always)]
-pub(super) unsafe fn read(
-    x: &Disjoint<V3>,
-    w: &[f64],
-    nodes: &[[u32; 8]; LANES],
-    corners: *mut f32,
-    masses: *mut f32,
-) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: the caller's.
-    unsafe {
-        sse::read(x, w, nodes, corners, masses)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    // SAFETY: the caller's.
-    unsafe {
-        scalar::read(x, w, nodes, corners, masses)
-    }
-}
-
-/// Move the nodes of the group's first `cells` lanes by `after − before` (lanes laid out as
-/// [`slot`] says; the lanes past `cells` repeat the last cell and are not written).
-///
-/// # Safety
-/// As for [`read`]; `after` and `before` hold `24·LANES` values each.
-#[allow(unsafe_code)]
-#[inline(always)]
-pub(super) unsafe fn write(
-    x: &Disjoint<V3>,
-    nodes: &[[u32; 8]; LANES],
-    cells: usize,
-    after: *const f32,
-    before: *const f32,
-) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: the caller's.
-    unsafe {
-        sse::write(x, nodes, cells, after, before)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    // SAFETY: the caller's.
-    unsafe {
-        scalar::write(x, nodes, cells, after, before)
-    }
-}
+// `read(x, w, nodes, corners, masses)` writes the nodes of the group `nodes` (a cell a lane)
+// relative to each cell's first node into `corners` (laid out as [`slot`] says) and their
+// inverse masses into `masses` (`f32` number `k·LANES + l` for corner `k` of lane `l`).
+// `write(x, nodes, cells, after, before)` moves the nodes of the group's first `cells` lanes
+// by `after − before` (the lanes past `cells` repeat the last cell and are not written).
+//
+// Safety of both: every node of `nodes` is below `x.len()` and `w.len()`, no other task of
+// the pass touches these nodes, `corners`, `after` and `before` hold `24·LANES` values and
+// `masses` `8·LANES`.
+#[cfg(not(target_arch = "x86_64"))]
+pub(super) use scalar::{read, write};
+#[cfg(target_arch = "x86_64")]
+pub(super) use sse::{read, write};
 
 /// One value at a time (what [`sse`] does four lanes at a time).
 #[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
 pub(super) mod scalar {
     use super::*;
 
-    /// [`super::read`].
+    /// `read` (see the module's `use` of it).
     #[allow(unsafe_code)]
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn read(
@@ -106,7 +66,7 @@ pub(super) mod scalar {
         }
     }
 
-    /// [`super::write`].
+    /// `write` (see the module's `use` of it).
     #[allow(unsafe_code)]
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn write(
@@ -158,7 +118,7 @@ pub(super) mod sse {
         unsafe { _mm_cvtpd_ps(_mm_loadh_pd(_mm_load_sd(a), b)) }
     }
 
-    /// [`super::read`].
+    /// `read` (see the module's `use` of it).
     #[allow(unsafe_code)]
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn read(
@@ -197,7 +157,7 @@ pub(super) mod sse {
         }
     }
 
-    /// [`super::write`].
+    /// `write` (see the module's `use` of it).
     #[allow(unsafe_code)]
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn write(
