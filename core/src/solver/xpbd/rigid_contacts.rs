@@ -108,13 +108,9 @@ fn rigid_contacts_with(
         if !near_surfaces && !colliders {
             continue;
         }
-        let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
-        for c in 0..8 {
-            let n = ids[c] as usize;
-            p += x[n] * weights[c];
-            p_prev += prev[n] * weights[c];
-            denominator += weights[c] * weights[c] * w[n];
-        }
+        let ids = ids.map(|n| n as usize);
+        let nodes = (ids.map(|n| x[n]), ids.map(|n| prev[n]), ids.map(|n| w[n]));
+        let (p, p_prev, denominator) = interpolate(weights, &nodes.0, &nodes.1, &nodes.2);
         if denominator <= 0.0 {
             continue;
         }
@@ -149,9 +145,8 @@ fn rigid_contacts_with(
             model.in_contact.push(i as u32);
         }
         let correction = c.correction + held.correction;
-        for k in 0..8 {
-            let n = ids[k] as usize;
-            let step = correction * (weights[k] * w[n] / denominator);
+        for (&n, weight) in ids.iter().zip(weights) {
+            let step = correction * (weight * w[n] / denominator);
             x[n] += step;
             model.contact_shift[n] += step;
             model.moved[n] = true;
@@ -200,10 +195,23 @@ pub(super) fn point_tasks(points: &PointGroups, cells: &CellSet) -> usize {
         .sum()
 }
 
-/// One point's contact with the rigid surfaces from its eight nodes: where they are (`x`),
-/// where they were at the substep's start (`prev`) and their inverse masses (`w`). `None`
-/// where the point does not touch (or cannot move); else the contact and the point's
-/// `Σ weight² · w`, which spreads its correction over the nodes.
+/// A point weighing its eight nodes by `weights`: where it is (from the nodes' `x`), where
+/// it was at the substep's start (from `prev`), and `Σ weight² · w` of the nodes' inverse
+/// masses, which spreads a correction of the point over the nodes.
+#[inline(always)]
+fn interpolate(weights: &[f64; 8], x: &[V3; 8], prev: &[V3; 8], w: &[f64; 8]) -> (V3, V3, f64) {
+    let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
+    for c in 0..8 {
+        p += x[c] * weights[c];
+        p_prev += prev[c] * weights[c];
+        denominator += weights[c] * weights[c] * w[c];
+    }
+    (p, p_prev, denominator)
+}
+
+/// One point's contact with the rigid surfaces from its eight nodes (as [`interpolate`]
+/// takes them). `None` where the point does not touch (or cannot move); else the contact and
+/// the point's `Σ weight² · w`.
 #[inline(always)]
 fn point_contact(
     surfaces: &Surfaces,
@@ -212,12 +220,7 @@ fn point_contact(
     prev: &[V3; 8],
     w: &[f64; 8],
 ) -> Option<(PointContact, f64)> {
-    let (mut p, mut p_prev, mut denominator) = (V3::zeros(), V3::zeros(), 0.0);
-    for c in 0..8 {
-        p += x[c] * weights[c];
-        p_prev += prev[c] * weights[c];
-        denominator += weights[c] * weights[c] * w[c];
-    }
+    let (p, p_prev, denominator) = interpolate(weights, x, prev, w);
     if denominator <= 0.0 {
         return None;
     }
