@@ -128,9 +128,12 @@ pub(crate) fn deterministic_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f6
     fold_chunks(n, -0.0, |r| r.map(&f).sum(), |total, p| total + p)
 }
 
-/// `chunk` over fixed [`PAR_CHUNK`]-long ranges of `0..n` on the pool, their results folded
-/// into `init` in chunk order: the same on any thread count. They are computed in batches held
-/// on the stack, so nothing is allocated.
+/// `chunk` over fixed [`PAR_CHUNK`]-long ranges of `0..n`, their results folded into `init`
+/// in chunk order: the same on any thread count. The chunks run on the calling thread's
+/// [`team`] when it has one (a frame's measures, between its substeps' passes: on rayon's pool
+/// each of a frame's dozen measures woke a sleeping worker while the team's helper still held
+/// the other core), else on rayon's pool. They are computed in batches held on the stack, so
+/// nothing is allocated.
 pub(crate) fn fold_chunks<T: Copy + Default + Send>(
     n: usize,
     init: T,
@@ -140,25 +143,31 @@ pub(crate) fn fold_chunks<T: Copy + Default + Send>(
     use rayon::prelude::*;
     const BATCH: usize = 64;
     let chunks = n.div_ceil(PAR_CHUNK);
+    let on_team = team::active();
     let mut total = init;
     for first in (0..chunks).step_by(BATCH) {
         let mut partial = [T::default(); BATCH];
         let batch = &mut partial[..BATCH.min(chunks - first)];
-        batch.par_iter_mut().enumerate().for_each(|(j, out)| {
+        let run = |j: usize, out: &mut T| {
             let c = first + j;
             *out = chunk(c * PAR_CHUNK..((c + 1) * PAR_CHUNK).min(n));
-        });
+        };
+        if on_team {
+            team::for_each(team::Chunks::new(batch, 1), |j, out: &mut [T]| {
+                run(j, &mut out[0])
+            });
+        } else {
+            batch
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(j, out)| run(j, out));
+        }
         total = batch.iter().fold(total, |t, &p| fold(t, p));
     }
     total
 }
 
-/// Maximum of `f(i)` over `0..n` (order does not matter for max, but keep one code path).
+/// Maximum of `f(i)` over `0..n` and 0 ([`fold_chunks`]: on the team when there is one).
 pub(crate) fn parallel_max(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
-    use rayon::prelude::*;
-    (0..n)
-        .into_par_iter()
-        .with_min_len(PAR_CHUNK)
-        .map(&f)
-        .reduce(|| 0.0, f64::max)
+    fold_chunks(n, 0.0, |r| r.map(&f).fold(0.0, f64::max), f64::max)
 }

@@ -227,6 +227,12 @@ pub(crate) fn with_team<R>(threads: usize, f: impl FnOnce() -> R) -> R {
     f()
 }
 
+/// Whether this thread runs inside [`with_team`] with a team of helpers (so [`for_each`]
+/// shares its passes).
+pub(crate) fn active() -> bool {
+    CURRENT.with(Cell::get).is_some()
+}
+
 /// The process's team of `threads` threads, built on first use and kept.
 fn team_of(threads: usize) -> Option<&'static Team> {
     use std::collections::BTreeMap;

@@ -333,11 +333,25 @@ impl World {
     /// Advance one output frame of `frame_dt` seconds; `frame` is the 1-based number of the
     /// frame reached. Stops with an error naming the frame and node at the first non-finite
     /// value, and with [`SimulationError::Cancelled`] when `cancelled()` turns true.
+    /// The frame runs on one worker ([`on_worker`]): its substeps' passes and its measures
+    /// (the substep choice, the energies, the checks) share the world's team.
     pub fn advance_frame(
         &mut self,
         frame_dt: f64,
         frame: usize,
-        cancelled: &dyn Fn() -> bool,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<FrameDiagnostics, SimulationError> {
+        on_worker(self.parallel_size(), || {
+            self.advance_frame_here(frame_dt, frame, cancelled)
+        })
+    }
+
+    /// [`Self::advance_frame`] on the worker it runs on.
+    fn advance_frame_here(
+        &mut self,
+        frame_dt: f64,
+        frame: usize,
+        cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<FrameDiagnostics, SimulationError> {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
@@ -347,11 +361,9 @@ impl World {
         let census = if self.on_device() {
             self.advance_on_device(choice.substeps, choice.dt, &mut acc)?
         } else {
-            on_worker(self.parallel_size(), || {
-                for _ in 0..choice.substeps {
-                    self.step_accumulate(choice.dt, &mut acc);
-                }
-            });
+            for _ in 0..choice.substeps {
+                self.step_accumulate(choice.dt, &mut acc);
+            }
             None
         };
         self.contact_log.end_frame();

@@ -39,7 +39,6 @@ use super::lanes::{highest_node, solve_cubes, Cubes, Gather, LANES};
 use crate::material::Material;
 use crate::solver::team::{self, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
-use rayon::prelude::*;
 use std::ops::Range;
 
 type V3 = Vector3<f64>;
@@ -528,28 +527,30 @@ impl CellSet {
     /// of a cube cell counts (what [`crate::lattice::cell_is_inverted`] tests), and the one
     /// element of a tet. A minimum, so the same on any thread count; `∞` with no cells.
     pub(crate) fn most_collapsed(&self, x: &[V3]) -> f64 {
-        (0..self.nodes.len())
-            .into_par_iter()
-            .with_min_len(super::super::PAR_CHUNK)
-            .map(|j| {
-                let local = gather(&self.nodes[j], x);
-                match self.shape[j] {
-                    Shape::Cube { inv_h, .. } => {
-                        let mut least = f64::INFINITY;
-                        for c in 0..8 {
-                            let f = corner_columns(&local, c, inv_h);
-                            least = least.min(f[0].dot(&f[1].cross(&f[2])));
-                        }
-                        least
+        let least = |j: usize| {
+            let local = gather(&self.nodes[j], x);
+            match self.shape[j] {
+                Shape::Cube { inv_h, .. } => {
+                    let mut least = f64::INFINITY;
+                    for c in 0..8 {
+                        let f = corner_columns(&local, c, inv_h);
+                        least = least.min(f[0].dot(&f[1].cross(&f[2])));
                     }
-                    shape @ Shape::Tet { .. } => {
-                        let mut ratio = f64::INFINITY;
-                        for_each_element(shape, |e| ratio = volume_ratio(&e.gradient(&local)).0);
-                        ratio
-                    }
+                    least
                 }
-            })
-            .reduce(|| f64::INFINITY, f64::min)
+                shape @ Shape::Tet { .. } => {
+                    let mut ratio = f64::INFINITY;
+                    for_each_element(shape, |e| ratio = volume_ratio(&e.gradient(&local)).0);
+                    ratio
+                }
+            }
+        };
+        super::super::fold_chunks(
+            self.nodes.len(),
+            f64::INFINITY,
+            |r| r.map(least).fold(f64::INFINITY, f64::min),
+            f64::min,
+        )
     }
 
     /// Elastic energy of every cell at positions `x`, J (for the report's energy balance),
