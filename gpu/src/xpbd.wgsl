@@ -145,16 +145,6 @@ struct BodyOut {
 const COLLAPSE_J: f32 = 0.2;
 const WG: u32 = 64u;
 
-// Kuhn's six tets of a cube cell (solver::volume::TETS).
-const TETS = array<vec4<u32>, 6>(
-    vec4<u32>(0u, 1u, 3u, 7u),
-    vec4<u32>(0u, 3u, 2u, 7u),
-    vec4<u32>(0u, 2u, 6u, 7u),
-    vec4<u32>(0u, 6u, 4u, 7u),
-    vec4<u32>(0u, 4u, 5u, 7u),
-    vec4<u32>(0u, 5u, 1u, 7u),
-);
-
 fn good(d: f32) -> bool {
     // Positive and finite (3.4e38 is f32's largest).
     return d > 0.0 && d < 3.0e38;
@@ -207,23 +197,35 @@ fn signs(c: u32, inv_h: f32) -> vec3<f32> {
     );
 }
 
+// Six times the cell's Kuhn volume, d · S, and its gradient in closed form
+// (solver::xpbd::cells::cube_volume): -S at node 0, S at node 7, the rest below.
+fn six_volume_gradient() -> array<vec3<f32>, 8> {
+    let d = lx[7] - lx[0];
+    let u1 = lx[1] - lx[0];
+    let u2 = lx[2] - lx[0];
+    let u3 = lx[3] - lx[0];
+    let u4 = lx[4] - lx[0];
+    let u5 = lx[5] - lx[0];
+    let u6 = lx[6] - lx[0];
+    let a1 = u3 - u5;
+    let a2 = u6 - u3;
+    let a3 = u5 - u6;
+    let s = cross(u1, a1) + cross(u2, a2) + cross(u4, a3);
+    return array<vec3<f32>, 8>(
+        -s,
+        cross(a1, d),
+        cross(a2, d),
+        cross(d, u1 - u2),
+        cross(a3, d),
+        cross(d, u4 - u1),
+        cross(d, u2 - u4),
+        s,
+    );
+}
+
 fn cube_volume_step(inv_v: f32, alpha: f32) {
-    var grad: array<vec3<f32>, 8>;
-    var six_v = 0.0;
-    for (var t = 0u; t < 6u; t++) {
-        let k = TETS[t];
-        let e1 = lx[k.y] - lx[k.x];
-        let e2 = lx[k.z] - lx[k.x];
-        let e3 = lx[k.w] - lx[k.x];
-        let g1 = cross(e2, e3);
-        let g2 = cross(e3, e1);
-        let g3 = cross(e1, e2);
-        six_v += dot(e1, g1);
-        grad[k.y] += g1;
-        grad[k.z] += g2;
-        grad[k.w] += g3;
-        grad[k.x] -= g1 + g2 + g3;
-    }
+    var grad = six_volume_gradient();
+    let six_v = dot(lx[7] - lx[0], grad[7]);
     let sixth = 1.0 / 6.0;
     let value = six_v * sixth * inv_v - 1.0;
     var denominator = alpha;
@@ -387,13 +389,7 @@ fn strain_squared(c: u32, inv_h: f32, r: vec3<f32>) -> f32 {
 }
 
 fn cube_volume() -> f32 {
-    var six_v = 0.0;
-    for (var t = 0u; t < 6u; t++) {
-        let k = TETS[t];
-        let e1 = lx[k.y] - lx[k.x];
-        six_v += dot(e1, cross(lx[k.z] - lx[k.x], lx[k.w] - lx[k.x]));
-    }
-    return six_v / 6.0;
+    return dot(lx[7] - lx[0], six_volume_gradient()[7]) / 6.0;
 }
 
 // Each cell's energy (½ C² / compliance for its volume and four shear corners), its least

@@ -82,11 +82,6 @@ macro_rules! three {
 }
 
 impl V {
-    const ZERO: V = V {
-        x: [0.0; LANES],
-        y: [0.0; LANES],
-        z: [0.0; LANES],
-    };
     #[inline(always)]
     fn sub(&self, o: &V) -> V {
         V {
@@ -277,37 +272,63 @@ unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
     }
 }
 
-/// `V/V_0 − 1` over the six Kuhn tets.
+/// `V/V_0 − 1` over the six Kuhn tets, in the closed form of [`super::cells::cube_volume`].
 #[inline(always)]
 fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes) {
-    let mut grad = [V::ZERO; 8];
-    let mut six_v = [0.0; LANES];
-    for [a, b, c, d] in crate::solver::volume::TETS {
-        let (e1, e2, e3) = (x[b].sub(&x[a]), x[c].sub(&x[a]), x[d].sub(&x[a]));
-        let (g1, g2, g3) = (e2.cross(&e3), e3.cross(&e1), e1.cross(&e2));
-        let v = e1.dot(&g1);
-        six_v = map(|l| six_v[l] + v[l]);
-        grad[b] = grad[b].add(&g1);
-        grad[c] = grad[c].add(&g2);
-        grad[d] = grad[d].add(&g3);
-        grad[a] = grad[a].sub(&g1.add(&g2).add(&g3));
-    }
-    let sixth = [1.0 / 6.0; LANES];
-    for g in &mut grad {
-        *g = g.scale(&sixth);
-    }
-    let inv_v = map(|l| p.inv_h[l] * p.inv_h[l] * p.inv_h[l]);
-    let value = map(|l| six_v[l] * sixth[l] * inv_v[l] - 1.0);
-    let mut denominator = p.hydro;
-    for k in 0..8 {
-        let n = grad[k].dot(&grad[k]);
-        denominator = map(|l| denominator[l] + w[k][l] * n[l] * inv_v[l] * inv_v[l]);
+    let grad = six_volume_gradient(x);
+    let six_v = grad.diagonal.dot(&grad.loop_area);
+    // The gradients below are 6 V's: a sixth of them is V's.
+    let q = map(|l| p.inv_h[l] * p.inv_h[l] * p.inv_h[l] * (1.0 / 6.0));
+    let value = map(|l| six_v[l] * q[l] - 1.0);
+    let ends = grad.loop_area.dot(&grad.loop_area);
+    let mut denominator = map(|l| p.hydro[l] + (w[0][l] + w[7][l]) * ends[l] * q[l] * q[l]);
+    for (k, g) in grad.side.iter().enumerate() {
+        let n = g.dot(g);
+        let wk = &w[SIDE_NODES[k]];
+        denominator = map(|l| denominator[l] + wk[l] * n[l] * q[l] * q[l]);
     }
     let active = mask(|l| p.hydro[l].is_finite() & (value[l].abs() > NOISE_FLOOR));
     let dl = multiplier(&value, &denominator, &active);
-    let dl = map(|l| dl[l] * inv_v[l]);
-    for k in 0..8 {
-        step(&mut x[k], &grad[k], &w[k], &dl);
+    let dl = map(|l| dl[l] * q[l]);
+    step(&mut x[0], &grad.loop_area.neg(), &w[0], &dl);
+    step(&mut x[7], &grad.loop_area, &w[7], &dl);
+    for (k, g) in grad.side.iter().enumerate() {
+        let n = SIDE_NODES[k];
+        step(&mut x[n], g, &w[n], &dl);
+    }
+}
+
+/// The six nodes off the 0–7 diagonal, in the order of [`SixVolume::side`].
+const SIDE_NODES: [usize; 6] = [1, 2, 4, 3, 5, 6];
+
+/// Six times a cube cell's Kuhn volume `6V = d · S` and its gradient (see
+/// [`super::cells::cube_volume`]): `d = x₇ − x₀`, `S` the hexagon's loop area; the gradient
+/// is `−S` at node 0, `S` at node 7 and `side` at [`SIDE_NODES`].
+struct SixVolume {
+    diagonal: V,
+    loop_area: V,
+    side: [V; 6],
+}
+
+#[inline(always)]
+fn six_volume_gradient(x: &[V; 8]) -> SixVolume {
+    let u = |k: usize| x[k].sub(&x[0]);
+    let d = x[7].sub(&x[0]);
+    let (u1, u2, u3, u4, u5, u6) = (u(1), u(2), u(3), u(4), u(5), u(6));
+    let (a1, a2, a3) = (u3.sub(&u5), u6.sub(&u3), u5.sub(&u6));
+    let (b1, b2, b3) = (u1.sub(&u2), u4.sub(&u1), u2.sub(&u4));
+    let loop_area = u1.cross(&a1).add(&u2.cross(&a2)).add(&u4.cross(&a3));
+    SixVolume {
+        side: [
+            a1.cross(&d),
+            a2.cross(&d),
+            a3.cross(&d),
+            d.cross(&b1),
+            d.cross(&b2),
+            d.cross(&b3),
+        ],
+        diagonal: d,
+        loop_area,
     }
 }
 
