@@ -35,7 +35,7 @@
 //! local copies of their eight nodes and written back in cell order, so any thread count gives
 //! the same bits.
 
-use super::lanes::{highest_node, solve_cubes, Cubes, Gather, LANES};
+use super::lanes::{highest_node, mass_lanes, solve_cubes, Cubes, Gather, MassLanes, LANES};
 use crate::material::Material;
 use crate::solver::team::{self, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
@@ -108,6 +108,11 @@ pub(crate) struct CellSet {
     lanes: Vec<Option<(Cubes, u32)>>,
     /// The substep length `lanes` are for (NaN: not made).
     lanes_dt: f64,
+    /// Per group, its nodes' inverse masses in lanes ([`mass_lanes`]), made from `lanes_w`.
+    lane_masses: Vec<MassLanes>,
+    /// The inverse masses `lane_masses` were made from: made again when a substep's differ
+    /// (a pin let go, a node bound to a path), compared bit for bit.
+    lanes_w: Vec<f64>,
     /// Shortest rest edge of any cell, m (0 without cells).
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
@@ -295,6 +300,26 @@ impl CellSet {
         }
         self.lanes.clear();
         self.lanes_dt = f64::NAN;
+        self.lane_masses.clear();
+        self.lanes_w.clear();
+    }
+
+    /// Make the groups' inverse masses in lanes ([`Self::lane_masses`]) from `w`, unless
+    /// they are already made from the same bits.
+    fn refresh_lane_masses(&mut self, w: &[f64]) {
+        let differ = |a: &f64, b: &f64| a.to_bits() ^ b.to_bits();
+        let same = self.lanes_w.len() == w.len()
+            && self.lane_masses.len() == self.groups.len()
+            // An OR of the differences, not a search that stops at the first: it vectorises.
+            && self.lanes_w.iter().zip(w).fold(0, |any, (a, b)| any | differ(a, b)) == 0;
+        if same {
+            return;
+        }
+        self.lanes_w.clear();
+        self.lanes_w.extend_from_slice(w);
+        let nodes = &self.nodes;
+        let masses = self.groups.iter().map(|g| mass_lanes(&nodes[g.clone()], w));
+        self.lane_masses = masses.collect();
     }
 
     /// Make the groups' lane parameters ([`Self::lanes`]) for substeps of `dt` seconds.
@@ -424,6 +449,7 @@ impl CellSet {
         if self.lanes_dt != dt || self.lanes.len() != self.groups.len() {
             self.make_lanes(dt);
         }
+        self.refresh_lane_masses(w);
         for (colour, range) in self.colours.iter().enumerate() {
             let nodes = &self.nodes[range.clone()];
             let shape = &self.shape[range.clone()];
@@ -448,7 +474,7 @@ impl CellSet {
                 (0..nodes.len()).for_each(solve_one);
                 continue;
             }
-            let solve_group = |(group, lanes): (&Range<usize>, &Option<(Cubes, u32)>)| {
+            let solve_group = |((group, lanes), masses): ((&Range<usize>, &Option<_>), _)| {
                 let (first, end) = (group.start - range.start, group.end - range.start);
                 let Some((cubes, highest)) = lanes else {
                     return (first..end).for_each(solve_one);
@@ -457,7 +483,7 @@ impl CellSet {
                     nodes: &nodes[first..end],
                     highest: *highest,
                     x: &xs,
-                    w,
+                    masses,
                 };
                 #[allow(unsafe_code)]
                 unsafe {
@@ -468,12 +494,14 @@ impl CellSet {
             // at a time (a 16³ lattice's colour, 53 groups, is 14 tasks).
             let groups = &self.groups[self.colour_groups[colour].clone()];
             let lanes = &self.lanes[self.colour_groups[colour].clone()];
+            let masses = &self.lane_masses[self.colour_groups[colour].clone()];
             team::for_each(Tasks(groups.len().div_ceil(GROUPS_PER_TASK)), |task, ()| {
                 let first = task * GROUPS_PER_TASK;
                 let mine = first..(first + GROUPS_PER_TASK).min(groups.len());
                 groups[mine.clone()]
                     .iter()
-                    .zip(&lanes[mine])
+                    .zip(&lanes[mine.clone()])
+                    .zip(&masses[mine])
                     .for_each(solve_group);
             });
         }
@@ -1091,6 +1119,38 @@ pub(super) mod tests {
         }
         set.finish(side * side * side);
         set
+    }
+
+    /// The lanes' inverse masses follow the ones a substep passes: a node pinned between two
+    /// sweeps stays where it is, and the sweep is the one a fresh set makes.
+    #[test]
+    fn the_lanes_take_the_masses_of_each_sweep() {
+        let n = 4;
+        let side = n + 1;
+        let squashed = |x: &mut Vec<V3>| {
+            for (i, p) in x.iter_mut().enumerate() {
+                let k = i / (side * side);
+                *p = V3::new(
+                    (i % side) as f64,
+                    ((i / side) % side) as f64,
+                    k as f64 * 0.8,
+                );
+            }
+        };
+        let mut x = Vec::new();
+        x.resize(side * side * side, V3::zeros());
+        squashed(&mut x);
+        let mut w = vec![1.0; x.len()];
+        let mut kept = lattice_set(n, |_, _, _| true);
+        kept.solve(&mut x.clone(), &w, 1e-3);
+        let pinned = 2 + side * (2 + side * 2);
+        w[pinned] = 0.0;
+        let mut y = x.clone();
+        kept.solve(&mut x, &w, 1e-3);
+        lattice_set(n, |_, _, _| true).solve(&mut y, &w, 1e-3);
+        assert_eq!(x, y);
+        assert_eq!(x[pinned], V3::new(2.0, 2.0, 1.6));
+        assert_ne!(x[pinned + 1], V3::new(3.0, 2.0, 1.6));
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! The cells' lanes' reads and writes ([`super::lanes`]): a group's cells' nodes from the
-//! `f64` positions into `f32` lanes, each cell in its own frame (relative to its first node),
-//! with their inverse masses; and the solve's moves back onto the positions.
+//! `f64` positions into `f32` lanes, each cell in its own frame (relative to its first node);
+//! and the solve's moves back onto the positions.
 //!
 //! A lane is one cell and a node's three coordinates go to three lanes, so a read is a
 //! transpose. One value at a time it was a quarter of the kernel's instructions (callgrind,
@@ -22,15 +22,13 @@ fn slot(k: usize, axis: usize, lane: usize) -> usize {
     (k * 3 + axis) * LANES + lane
 }
 
-// `read(x, w, nodes, corners, masses)` writes the nodes of the group `nodes` (a cell a lane)
-// relative to each cell's first node into `corners` (laid out as [`slot`] says) and their
-// inverse masses into `masses` (`f32` number `k·LANES + l` for corner `k` of lane `l`).
+// `read(x, nodes, corners)` writes the nodes of the group `nodes` (a cell a lane) relative to
+// each cell's first node into `corners` (laid out as [`slot`] says).
 // `write(x, nodes, cells, after, before)` moves the nodes of the group's first `cells` lanes
 // by `after − before` (the lanes past `cells` repeat the last cell and are not written).
 //
-// Safety of both: every node of `nodes` is below `x.len()` and `w.len()`, no other task of
-// the pass touches these nodes, `corners`, `after` and `before` hold `24·LANES` values and
-// `masses` `8·LANES`.
+// Safety of both: every node of `nodes` is below `x.len()`, no other task of the pass touches
+// these nodes, and `corners`, `after` and `before` hold `24·LANES` values.
 #[cfg(not(target_arch = "x86_64"))]
 pub(super) use scalar::{read, write};
 #[cfg(target_arch = "x86_64")]
@@ -46,10 +44,8 @@ pub(super) mod scalar {
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn read(
         x: &Disjoint<V3>,
-        w: &[f64],
         nodes: &[[u32; 8]; LANES],
         corners: *mut f32,
-        masses: *mut f32,
     ) {
         // SAFETY (every access below): the caller's.
         unsafe {
@@ -60,7 +56,6 @@ pub(super) mod scalar {
                     for axis in 0..3 {
                         *corners.add(slot(k, axis, l)) = d[axis] as f32;
                     }
-                    *masses.add(k * LANES + l) = *w.get_unchecked(n as usize) as f32;
                 }
             }
         }
@@ -110,26 +105,16 @@ pub(super) mod sse {
         }
     }
 
-    /// The inverse masses at `a` and `b` as the low two `f32` of a register.
-    #[allow(unsafe_code)]
-    #[inline(always)]
-    unsafe fn pair(a: *const f64, b: *const f64) -> __m128 {
-        // SAFETY: the caller's.
-        unsafe { _mm_cvtpd_ps(_mm_loadh_pd(_mm_load_sd(a), b)) }
-    }
-
     /// `read` (see the module's `use` of it).
     #[allow(unsafe_code)]
     #[inline(always)]
     pub(in crate::solver::xpbd) unsafe fn read(
         x: &Disjoint<V3>,
-        w: &[f64],
         nodes: &[[u32; 8]; LANES],
         corners: *mut f32,
-        masses: *mut f32,
     ) {
         // A `Vector3<f64>` is three contiguous `f64` (nalgebra's array storage).
-        let (base, wp) = (x.as_ptr() as *const f64, w.as_ptr());
+        let base = x.as_ptr() as *const f64;
         let node = |l: usize, k: usize| nodes[l][k] as usize;
         // SAFETY (every pointer below): the nodes are in bounds, the lanes have room (the
         // caller's).
@@ -149,9 +134,6 @@ pub(super) mod sse {
                     _mm_storeu_ps(corners.add(slot(k, 0, first)), _mm_movelh_ps(t0, t1));
                     _mm_storeu_ps(corners.add(slot(k, 1, first)), _mm_movehl_ps(t1, t0));
                     _mm_storeu_ps(corners.add(slot(k, 2, first)), _mm_movelh_ps(t2, t3));
-                    let w01 = pair(wp.add(node(first, k)), wp.add(node(first + 1, k)));
-                    let w23 = pair(wp.add(node(first + 2, k)), wp.add(node(first + 3, k)));
-                    _mm_storeu_ps(masses.add(k * LANES + first), _mm_movelh_ps(w01, w23));
                 }
             }
         }
@@ -222,7 +204,6 @@ mod tests {
         let mut xs: Vec<V3> = (0..n)
             .map(|_| V3::new(rng.f64(), rng.f64(), rng.f64()) * 2000.0 - V3::repeat(1000.0))
             .collect();
-        let w: Vec<f64> = (0..n).map(|_| rng.f64() * 40.0).collect();
         for cells in 1..=LANES {
             let mut nodes = [[0u32; 8]; LANES];
             let mut ids: Vec<u32> = (0..n as u32).collect();
@@ -232,28 +213,14 @@ mod tests {
                 cell.copy_from_slice(&ids[from..from + 8]);
             }
             let (mut a, mut b) = ([[[0.0; LANES]; 3]; 8], [[[0.0; LANES]; 3]; 8]);
-            let (mut wa, mut wb) = ([[0.0f32; LANES]; 8], [[0.0f32; LANES]; 8]);
             let mut ys = xs.clone();
             #[allow(unsafe_code)]
             unsafe {
                 let x = Disjoint::new(&mut xs);
-                sse::read(
-                    &x,
-                    &w,
-                    &nodes,
-                    a.as_mut_ptr().cast(),
-                    wa.as_mut_ptr().cast(),
-                );
-                scalar::read(
-                    &x,
-                    &w,
-                    &nodes,
-                    b.as_mut_ptr().cast(),
-                    wb.as_mut_ptr().cast(),
-                );
+                sse::read(&x, &nodes, a.as_mut_ptr().cast());
+                scalar::read(&x, &nodes, b.as_mut_ptr().cast());
             }
             assert_eq!(a, b);
-            assert_eq!(wa, wb);
             let before: Lanes = a;
             let after: Lanes = a.map(|c| c.map(|axis| axis.map(|v| v + rng.f32() * 1e-3 - 5e-4)));
             #[allow(unsafe_code)]

@@ -45,6 +45,13 @@ fn mask(holds: impl Fn(usize) -> bool) -> Mask {
     map(|l| if holds(l) { 1.0 } else { 0.0 })
 }
 
+/// Whether no lane holds: the masks' bits OR-ed together, which vectorises (a lane-by-lane
+/// `all` with its early exit stayed eight compares and branches).
+#[inline(always)]
+fn none(on: &Mask) -> bool {
+    on.iter().fold(0u32, |any, m| any | m.to_bits()) == 0
+}
+
 /// A vector per lane (`repr(C)`: three `L` in a row, as [`lane_io`] lays them out).
 #[derive(Clone, Copy)]
 #[repr(C)]
@@ -169,15 +176,26 @@ pub(crate) struct Cubes {
     pub odd: bool,
 }
 
+/// A group's inverse masses in lanes: corner `k` of lane `l` at `[k][l]` ([`mass_lanes`]).
+pub(crate) type MassLanes = [L; 8];
+
 /// A group's nodes: the node ids of one to [`LANES`] cells (`nodes`, one cell a lane) into
-/// the positions `x` (read and written in place) and inverse masses `w`.
+/// the positions `x` (read and written in place), and their inverse masses in lanes.
 pub(crate) struct Gather<'a, 'x> {
     pub nodes: &'a [[u32; 8]],
     /// The highest node id in `nodes` ([`highest_node`]): the bounds are checked against it
     /// once (the largest of 64 ids, taken each time, was 3 % of the kernel).
     pub highest: u32,
     pub x: &'a Disjoint<'x, V3>,
-    pub w: &'a [f64],
+    /// [`mass_lanes`] of `nodes`: kept by the caller while the masses stay (read with the
+    /// positions at every group, they were 7 % of the kernel's instructions).
+    pub masses: &'a MassLanes,
+}
+
+/// The inverse masses `w` of a group's nodes in lanes, a short group's last cell repeated.
+pub(crate) fn mass_lanes(nodes: &[[u32; 8]], w: &[f64]) -> MassLanes {
+    let cell = |l: usize| &nodes[l.min(nodes.len().saturating_sub(1))];
+    std::array::from_fn(|k| map(|l| w[cell(l)[k] as usize] as S))
 }
 
 /// The highest node id of a group's cells.
@@ -239,30 +257,24 @@ unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
     // Bounds checked once for the group, not at each of its 128 reads and 64 writes.
     debug_assert_eq!(from.highest, highest_node(from.nodes));
     let highest = from.highest as usize;
-    assert!(
-        highest < from.x.len() && highest < from.w.len(),
-        "node {highest} out of bounds"
-    );
+    assert!(highest < from.x.len(), "node {highest} out of bounds");
     // SAFETY (`read`, `write`): in bounds (checked above), and the nodes are this task's
     // alone (the caller's contract).
-    let (mut x, mut wk) = (
-        MaybeUninit::<[V; 8]>::uninit(),
-        MaybeUninit::<[L; 8]>::uninit(),
-    );
-    let (mut x, wk) = unsafe {
-        let (corners, masses) = (x.as_mut_ptr().cast(), wk.as_mut_ptr().cast());
-        lane_io::read(from.x, from.w, &nodes, corners, masses);
-        // Every lane of both was written (`V` is three `L` in a row: `repr(C)`).
-        (x.assume_init(), wk.assume_init())
+    let mut x = MaybeUninit::<[V; 8]>::uninit();
+    let mut x = unsafe {
+        lane_io::read(from.x, &nodes, x.as_mut_ptr().cast());
+        // Every lane was written (`V` is three `L` in a row: `repr(C)`).
+        x.assume_init()
     };
+    let wk = from.masses;
     let start = x;
-    volume(&mut x, &wk, p);
+    volume(&mut x, wk, p);
     let corners = if p.odd { [1, 2, 4, 7] } else { [0, 3, 5, 6] };
     for c in corners {
-        shear(&mut x, &wk, c, p);
+        shear(&mut x, wk, c, p);
     }
     for c in 0..8 {
-        barrier(&mut x, &wk, c, p);
+        barrier(&mut x, wk, c, p);
     }
     // Each node moves by what the solve moved it: a node it left alone keeps its bits.
     // SAFETY: as above.
@@ -415,7 +427,7 @@ fn barrier(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let first = f[1].cross(&f[2]);
     let j = f[0].dot(&first);
     let on = mask(|l| j[l] < COLLAPSE_J as S);
-    if on.iter().all(|&m| m == 0.0) {
+    if none(&on) {
         return;
     }
     let cof = [first, f[2].cross(&f[0]), f[0].cross(&f[1])];
@@ -481,7 +493,7 @@ mod tests {
             nodes: &nodes,
             highest: highest_node(&nodes),
             x: &Disjoint::new(&mut x),
-            w: &wn,
+            masses: &mass_lanes(&nodes, &wn),
         };
         // SAFETY: one thread, cells with their own nodes.
         #[allow(unsafe_code)]
