@@ -274,8 +274,16 @@ impl Drop for RayCluster {
     }
 }
 
-/// Pids of the variant bakes Ray workers are running now (`springbake wedge … --only`).
-fn running_bakes() -> Vec<(u32, u32)> {
+/// A variant bake a Ray worker runs (`springbake wedge … --only`): its pid, its worker's,
+/// and the worker's temporary folder it writes into (`src/wedge_ray.py`).
+struct RunningBake {
+    pid: u32,
+    worker: u32,
+    folder: Option<PathBuf>,
+}
+
+/// The variant bakes Ray workers are running now.
+fn running_bakes() -> Vec<RunningBake> {
     let mut out = Vec::new();
     for entry in std::fs::read_dir("/proc").unwrap().flatten() {
         let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
@@ -283,14 +291,19 @@ fn running_bakes() -> Vec<(u32, u32)> {
         };
         let cmdline = std::fs::read(entry.path().join("cmdline")).unwrap_or_default();
         let args: Vec<&[u8]> = cmdline.split(|&b| b == 0).collect();
-        let is_bake = args.iter().any(|a| *a == b"--only")
-            && args.iter().any(|a| {
-                a.starts_with(b"/tmp/springbake-wedge-")
-                    || a.windows(16).any(|w| w == b"springbake-wedge")
-            });
-        if !is_bake {
+        let in_wedge_folder = |a: &&&[u8]| a.windows(16).any(|w| w == b"springbake-wedge");
+        let Some(arg) = args.iter().find(in_wedge_folder) else {
+            continue;
+        };
+        if !args.iter().any(|a| *a == b"--only") {
             continue;
         }
+        // The argument is a path inside the worker's `springbake-wedge-…` folder.
+        let arg = PathBuf::from(String::from_utf8_lossy(arg).into_owned());
+        let folder = arg.ancestors().find(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            name.is_some_and(|n| n.starts_with("springbake-wedge-"))
+        });
         let stat = std::fs::read_to_string(entry.path().join("stat")).unwrap_or_default();
         let parent = stat
             .rsplit(')')
@@ -298,7 +311,11 @@ fn running_bakes() -> Vec<(u32, u32)> {
             .and_then(|rest| rest.split_whitespace().nth(1))
             .and_then(|p| p.parse().ok())
             .unwrap_or(0);
-        out.push((pid, parent));
+        out.push(RunningBake {
+            pid,
+            worker: parent,
+            folder: folder.map(Path::to_path_buf),
+        });
     }
     out
 }
@@ -329,20 +346,24 @@ fn a_ray_cluster_bakes_the_same_bytes_and_retries_a_killed_worker() {
     // Kill the Ray worker running the first variant bake that shows up.
     let mut killed = None;
     while killed.is_none() && started.elapsed() < Duration::from_secs(60) {
-        if let Some(&(bake, worker)) = running_bakes().first() {
+        if let Some(bake) = running_bakes().into_iter().next() {
             Command::new("kill")
-                .args(["-9", &worker.to_string()])
+                .args(["-9", &bake.worker.to_string()])
                 .status()
                 .unwrap();
-            killed = Some((bake, worker));
+            killed = Some(bake);
         }
         std::thread::sleep(Duration::from_millis(20));
     }
     let out = wedge.wait_with_output().unwrap();
     let ray_seconds = started.elapsed().as_secs_f64();
     assert!(out.status.success(), "{}", text(&out));
-    let (bake, _) =
-        killed.unwrap_or_else(|| panic!("no variant bake seen running: {}", text(&out)));
+    let killed = killed.unwrap_or_else(|| panic!("no variant bake seen running: {}", text(&out)));
+    // The killed worker never removed its temporary folder: remove it here.
+    if let Some(folder) = &killed.folder {
+        let _ = std::fs::remove_dir_all(folder);
+    }
+    let bake = killed.pid;
     // The killed worker's bake died with it, so its variant's files below come from Ray's
     // retry on another worker.
     assert!(
@@ -370,6 +391,8 @@ fn a_ray_cluster_bakes_the_same_bytes_and_retries_a_killed_worker() {
         );
     }
     eprintln!(
-        "ray wedge of 4 variants with a killed worker: {ray_seconds:.1} s; killed {killed:?}"
+        "ray wedge of 4 variants with a killed worker: {ray_seconds:.1} s; killed bake {bake} \
+         of worker {}",
+        killed.worker
     );
 }
