@@ -334,13 +334,16 @@ impl World {
     /// frame reached. Stops with an error naming the frame and node at the first non-finite
     /// value, and with [`SimulationError::Cancelled`] when `cancelled()` turns true.
     /// The frame runs on one worker ([`on_worker`]): its substeps' passes and its measures
-    /// (the substep choice, the energies, the checks) share the world's team.
+    /// (the substep choice, the energies, the checks) share the world's team. The fields
+    /// evaluated once a frame are evaluated first, on the caller's thread: a plug-in's field
+    /// takes the Python interpreter's lock, which a caller running from Python holds.
     pub fn advance_frame(
         &mut self,
         frame_dt: f64,
         frame: usize,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<FrameDiagnostics, SimulationError> {
+        super::fields::refresh(self, false);
         on_worker(self.parallel_size(), || {
             self.advance_frame_here(frame_dt, frame, cancelled)
         })
@@ -356,7 +359,6 @@ impl World {
         let choice = self.choose_substeps(frame_dt);
         let mut acc = FrameAccumulator::default();
         let (kinetic, elastic, gravity) = self.frame_energies();
-        super::fields::refresh(self, false);
         self.contact_log.begin_frame();
         let census = if self.on_device() {
             self.advance_on_device(choice.substeps, choice.dt, &mut acc)?
