@@ -39,6 +39,27 @@ fn the_python_package_bakes_what_the_cli_bakes() {
         dir.path(),
         &["bake", "scene.toml", "--progress", "quiet"],
     ));
+    // A scene with a plug-in's force field called every substep (from the solver's worker
+    // threads, which take the interpreter's lock: a bake that held it hung for ever).
+    let field = dir.path().join("field");
+    std::fs::create_dir_all(field.join("plugins")).unwrap();
+    std::fs::copy(
+        root.join("examples/plugins/vortex_field.py"),
+        field.join("plugins/vortex_field.py"),
+    )
+    .unwrap();
+    std::fs::copy(corpus("blender/icosphere.glb"), field.join("icosphere.glb")).unwrap();
+    std::fs::write(
+        field.join("scene.toml"),
+        "[output]\npath = \"cli.glb\"\nframes = 12\n[world]\nfloor = 0.0\n\
+         [[body]]\nsource = \"icosphere.glb\"\nmaterial = \"rubber\"\n\
+         [[force_field]]\nfield = \"vortex\"\n",
+    )
+    .unwrap();
+    succeeded(&springbake_in(
+        &field,
+        &["bake", "scene.toml", "--progress", "quiet"],
+    ));
     let out =
         springbake_testkit::run_python_client("python_package.py", &[dir.path().to_str().unwrap()]);
     let r = springbake_testkit::last_json_line(&out);
@@ -78,4 +99,10 @@ fn the_python_package_bakes_what_the_cli_bakes() {
     assert!(e.contains("pth") && e.contains("path"), "{e}");
     assert_eq!(r["inspect"]["format"], "gltf");
     assert_eq!(r["inspect"]["vertices"], 960);
+    assert_eq!(r["field_frames"], 12);
+    let (cli, python) = (field.join("cli.glb"), field.join("python.glb"));
+    assert!(
+        std::fs::read(cli).unwrap() == std::fs::read(python).unwrap(),
+        "the force-field scene baked from Python differs from the CLI's bake"
+    );
 }

@@ -20,9 +20,9 @@ use pyo3::exceptions::{PyException, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use springbake_pipeline::{BakeHooks, LoadedScene, MeshOverrides, PipelineError};
-use std::cell::RefCell;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 
 pyo3::create_exception!(
     springbake,
@@ -72,26 +72,37 @@ fn bake<'py>(
     let (registry, _) =
         springbake_pipeline::registry_with_plugins(Some(&loaded.read_root()), plugins);
     let stop = AtomicBool::new(false);
-    let failure: RefCell<Option<PyErr>> = RefCell::new(None);
-    let mut on_frame = |done: usize, total: usize| {
-        let called = match &progress {
-            Some(callback) => callback.call1((done, total)).map(drop),
-            None => Ok(()),
+    let failure: Mutex<Option<PyErr>> = Mutex::new(None);
+    let progress = progress.map(Bound::unbind);
+    // The bake runs without the interpreter's lock: a plug-in's force field is called from
+    // the solver's worker threads, which take the lock (held here, they waited for it for
+    // ever). The progress callback takes it back for each frame.
+    let outcome = py.detach(|| {
+        let mut on_frame = |done: usize, total: usize| {
+            let called = Python::attach(|py| {
+                let called = match &progress {
+                    Some(callback) => callback.bind(py).call1((done, total)).map(drop),
+                    None => Ok(()),
+                };
+                called.and_then(|()| py.check_signals())
+            });
+            if let Err(e) = called {
+                let mut failure = failure.lock().unwrap_or_else(|e| e.into_inner());
+                failure.get_or_insert(e);
+                stop.store(true, Ordering::Relaxed);
+            }
         };
-        if let Err(e) = called.and_then(|()| py.check_signals()) {
-            failure.borrow_mut().get_or_insert(e);
-            stop.store(true, Ordering::Relaxed);
-        }
-    };
-    let cancelled = || stop.load(Ordering::Relaxed);
-    let mut hooks = BakeHooks {
-        cancelled: Some(&cancelled),
-        max_memory: None,
-        progress: Some(&mut on_frame),
-        note: None,
-    };
-    let outcome = springbake_pipeline::bake(&registry, &loaded, &mut hooks);
-    if let Some(e) = failure.take() {
+        let cancelled = || stop.load(Ordering::Relaxed);
+        let mut hooks = BakeHooks {
+            cancelled: Some(&cancelled),
+            max_memory: None,
+            progress: Some(&mut on_frame),
+            note: None,
+        };
+        springbake_pipeline::bake(&registry, &loaded, &mut hooks)
+    });
+    let failure = failure.into_inner().unwrap_or_else(|e| e.into_inner());
+    if let Some(e) = failure {
         return Err(e);
     }
     let outcome = outcome.map_err(raised)?;

@@ -3,11 +3,17 @@
 Usage: python_package.py FOLDER
 FOLDER holds scene.toml (its output: cli.glb, already baked by the CLI) and icosphere.glb.
 Bakes the scene file and the same scene as a dict, with a progress callback; stops a bake
-from the callback; provokes a BakeError; inspects the mesh. Prints one JSON line.
+from the callback; provokes a BakeError; inspects the mesh; bakes FOLDER/field/scene.toml
+(a plug-in's force field, called every substep) to python.glb. Prints one JSON line.
 """
+import faulthandler
 import json
 import os
 import sys
+
+# A bake that hangs (it once did, with a plug-in's force field) fails instead of waiting for
+# ever: the watchdog is a C thread, so it fires even while a call holds the interpreter.
+faulthandler.dump_traceback_later(300, exit=True)
 
 import numpy
 import springbake
@@ -69,7 +75,13 @@ try:
 except springbake.BakeError as e:
     report["bake_error"] = str(e)
 
+os.chdir(os.path.join(folder, "field"))
+field = springbake.bake("scene.toml", output="python.glb")
+report["field_frames"] = field["frame_count"]
+os.chdir(folder)
+
 info = springbake.inspect("icosphere.glb", cells=8)
 report["inspect"] = {"format": info["format"], "vertices": info["meshes"][0]["vertices"],
                      "lattice_nodes": info["meshes"][0]["lattice"]["nodes"]}
+faulthandler.cancel_dump_traceback_later()
 print(json.dumps(report))
