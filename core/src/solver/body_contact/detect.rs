@@ -604,27 +604,35 @@ const EDGE_END: f64 = 1e-6;
 /// pulled them together).
 const EDGE_FACING: f64 = 0.2;
 
-/// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` (the grid
-/// is rebuilt here over `b`'s edges). Only edges whose faces meet at an angle (face normals
-/// more than 30° from opposite): between parallel faces the samples' vertex–face contacts
-/// already carry the load.
+/// What one pair's edge–edge search writes besides its contacts: a grid over the partner's
+/// edges and the candidates of a query. Each pair's task has its own, so pairs run side by
+/// side.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct EdgeScratch {
+    grid: BoxGrid,
+    candidates: Vec<u32>,
+}
+
+/// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` at layer
+/// thickness `h`, into `out` (a grid over `b`'s edges is built in `scratch`). Only edges whose
+/// faces meet at an angle (face normals more than 30° from opposite): between parallel faces
+/// the samples' vertex–face contacts already carry the load. Both meshes must be up to date
+/// in this step ([`super::prepare`]); reads the contact state only, so pairs run side by side.
 pub(super) fn detect_edges(
-    bc: &mut BodyContact,
-    input: &PassInput,
-    a: usize,
-    b: usize,
-    lo: Vector3<f64>,
-    hi: Vector3<f64>,
+    bc: &BodyContact,
+    (a, b): (usize, usize),
+    (lo, hi): (Vector3<f64>, Vector3<f64>),
+    h: f64,
+    scratch: &mut EdgeScratch,
+    out: &mut Vec<Contact>,
 ) {
     let (Some(ma), Some(mb)) = (bc.mesh_of[a], bc.mesh_of[b]) else {
         return;
     };
-    let h = input.layer.thickness_m;
-    let stamp = bc.step;
-    bc.meshes[ma].update(input.nodes, stamp);
-    bc.meshes[mb].update(input.nodes, stamp);
     let (ea, eb) = (&bc.meshes[ma], &bc.meshes[mb]);
-    bc.grid.build(
+    debug_assert!(ea.is_current(bc.step) && eb.is_current(bc.step));
+    let EdgeScratch { grid, candidates } = scratch;
+    grid.build(
         lo,
         hi,
         eb.mean_edge,
@@ -634,7 +642,7 @@ pub(super) fn detect_edges(
             (k as u32, p.inf(&q), p.sup(&q))
         }),
     );
-    if bc.grid.is_empty() {
+    if grid.is_empty() {
         return;
     }
     let behind = BEHIND_LAYERS * h;
@@ -649,13 +657,9 @@ pub(super) fn detect_edges(
         }
         let na = triangle_normal(&p0, &p1, &ea.x[third as usize]);
         let reach = h.max(behind);
-        bc.grid.query(
-            &elo.add_scalar(-reach),
-            &ehi.add_scalar(reach),
-            &mut bc.candidates,
-        );
+        grid.query(&elo.add_scalar(-reach), &ehi.add_scalar(reach), candidates);
         let mut best: Option<(f64, Contact)> = None;
-        for &k in &bc.candidates {
+        for &k in candidates.iter() {
             let [i0, i1, i2] = eb.edges[k as usize];
             let (q0, q1) = (eb.x[i0 as usize], eb.x[i1 as usize]);
             let nb = triangle_normal(&q0, &q1, &eb.x[i2 as usize]);
@@ -711,7 +715,7 @@ pub(super) fn detect_edges(
             }
         }
         if let Some((_, c)) = best {
-            bc.contacts.push(c);
+            out.push(c);
         }
     }
 }

@@ -130,6 +130,11 @@ impl BodyMesh {
         }
     }
 
+    /// Whether the vertices are those of step `stamp` ([`BodyMesh::update`]).
+    pub fn is_current(&self, stamp: u64) -> bool {
+        self.stamp == stamp
+    }
+
     /// The grid over the triangles' boxes at the vertices' positions now, grown by the margin.
     fn build_grid(&mut self) {
         self.built_at.clone_from(&self.x);

@@ -190,7 +190,8 @@ pub struct BodyContact {
     mesh_of: Vec<Option<usize>>,
     /// (bodies, surface points) the per-body tables were built for.
     built_for: (usize, usize),
-    grid: BoxGrid,
+    /// Each body pair's edge–edge search scratch, kept from step to step.
+    edge_scratch: Vec<EdgeScratch>,
     candidates: Vec<u32>,
     bounds: Vec<Bound>,
     contacts: Vec<Contact>,
@@ -484,7 +485,10 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     }
     let n_bodies = bodies.len();
     let mut searches = begin_searches(bc, input);
-    search_pairs(bc, input.surface, &mut searches);
+    let mut edge_scratch = std::mem::take(&mut bc.edge_scratch);
+    edge_scratch.resize_with(searches.len(), Default::default);
+    search_pairs(bc, input.surface, &mut searches, &mut edge_scratch);
+    bc.edge_scratch = edge_scratch;
     // Hertz's episodes end for the pairs out of reach (the others' end in `respond`).
     if bc.model == ContactModel::Hertz {
         end_hertz_episodes(bc, &searches);
@@ -496,15 +500,6 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
         for search in pair.searches.into_iter().flatten() {
             detect::end_pair(bc, search);
         }
-        let pair_layer = ContactLayer {
-            thickness_m: pair.h,
-            ..*layer
-        };
-        let pass = PassInput {
-            layer: &pair_layer,
-            ..*input
-        };
-        detect_edges(bc, &pass, a, b, pair.lo, pair.hi);
         if let Some(front) = pair.front {
             // Contacts found deeper than this can reach the constraint's gap.
             let least = pair.h - front;
@@ -628,17 +623,26 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
     out
 }
 
-/// The vertex–face contacts of each pair's searches (`a`'s samples first) into its `found`,
-/// pairs side by side on the world's team: each search builds its own list if due and only
-/// reads the contact state, and yields its contacts in its samples' order, so the result is
-/// the same on any thread count.
-fn search_pairs(bc: &BodyContact, surface: &SurfacePoints, pairs: &mut [PairSearches]) {
-    team::for_each(Chunks::new(pairs, 1), |_, pair| {
+/// The vertex–face contacts of each pair's searches (`a`'s samples first), then its
+/// edge–edge contacts, into its `found`, pairs side by side on the world's team (`scratch`:
+/// one per pair): each search builds its own list if due and only reads the contact state,
+/// and yields its contacts in its samples' (or edges') order, so the result is the same on
+/// any thread count.
+fn search_pairs(
+    bc: &BodyContact,
+    surface: &SurfacePoints,
+    pairs: &mut [PairSearches],
+    scratch: &mut [EdgeScratch],
+) {
+    let parts = (Chunks::new(pairs, 1), Chunks::new(scratch, 1));
+    team::for_each(parts, |_, (pair, scratch)| {
         let pair = &mut pair[0];
         pair.found.clear();
         for search in pair.searches.iter_mut().flatten() {
             detect::search_pair(bc, surface, search, &mut pair.found);
         }
+        let (ab, region) = ((pair.a, pair.b), (pair.lo, pair.hi));
+        detect_edges(bc, ab, region, pair.h, &mut scratch[0], &mut pair.found);
     });
 }
 

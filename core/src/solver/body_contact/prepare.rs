@@ -1,5 +1,6 @@
 //! The step's surfaces of the bodies that may touch, brought up to date side by side before
-//! the pairs' searches are prepared: each mesh's vertices, grid and every face's box and plane
+//! the pairs' searches are prepared (vertex–face and edge–edge): each mesh's vertices, grid
+//! and every face's box and plane
 //! ([`BodyMesh::update`], [`BodyMesh::refresh_all`]), and each body's contact samples. Serial,
 //! this upkeep was a fifth of a pile's bake (60 cubes 1 cm apart). Each task writes only its
 //! own mesh or its own run of samples and computes what the serial pass did, so the bits are
@@ -26,6 +27,10 @@ pub(super) fn surfaces_in_reach(bc: &mut BodyContact, input: &PassInput, pairs: 
     sampled.clear();
     sampled.resize(bc.points.len(), false);
     for &(a, b, _, _) in pairs {
+        // The edge–edge search reads both meshes.
+        if let (Some(ma), Some(mb)) = (bc.mesh_of[a], bc.mesh_of[b]) {
+            (mesh_needed[ma], mesh_needed[mb]) = (true, true);
+        }
         for (from, to) in [(a, b), (b, a)] {
             if let (Some(m), false) = (bc.mesh_of[to], bc.points[from].is_empty()) {
                 mesh_needed[m] = true;
