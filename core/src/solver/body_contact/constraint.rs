@@ -12,7 +12,7 @@
 //! energy: stacked bodies rest on each other, and a pile dropped together does not throw its
 //! parts apart.
 
-use super::{BodyContact, Feature};
+use super::{BodyContact, BodyMesh, Feature};
 use crate::solver::world::SurfacePoints;
 use nalgebra::Vector3;
 use std::ops::Range;
@@ -25,6 +25,55 @@ pub(crate) struct BodyConstraint {
     pub stencil: Range<u32>,
 }
 
+/// The stencils of a pair's contacts, made where the pair's search ran (side by side with the
+/// other pairs'), for [`BodyContact::constrain_with`] to copy: contact `k`'s entries are
+/// `entries[ends[k - 1]..ends[k]]`.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Stencils {
+    pub entries: Vec<(u32, f64)>,
+    pub ends: Vec<u32>,
+}
+
+impl Stencils {
+    /// Append the stencil of contact `a`–`b`.
+    pub fn push(&mut self, bc: &BodyContact, surface: &SurfacePoints, a: Feature, b: Feature) {
+        append_stencil(&mut self.entries, &bc.meshes, surface, (a, b));
+        self.ends.push(self.entries.len() as u32);
+    }
+
+    /// Contact `k`'s stencil.
+    pub fn get(&self, k: usize) -> &[(u32, f64)] {
+        let start = if k == 0 { 0 } else { self.ends[k - 1] };
+        &self.entries[start as usize..self.ends[k] as usize]
+    }
+}
+
+/// Append the stencil of contact `a`–`b` to `stencil`: `a`'s nodes and weights, `b`'s
+/// negated, each node once (a face's corners often share cells: the constraint's inverse mass
+/// `Σ s_k² w_k` needs the summed weight of a node, not its parts), in node order.
+fn append_stencil(
+    stencil: &mut Vec<(u32, f64)>,
+    meshes: &[BodyMesh],
+    surface: &SurfacePoints,
+    (a, b): (Feature, Feature),
+) {
+    let start = stencil.len();
+    push_feature(stencil, meshes, surface, a, 1.0);
+    push_feature(stencil, meshes, surface, b, -1.0);
+    stencil[start..].sort_unstable_by_key(|&(node, _)| node);
+    let mut kept = start;
+    for i in start..stencil.len() {
+        let (node, weight) = stencil[i];
+        if kept > start && stencil[kept - 1].0 == node {
+            stencil[kept - 1].1 += weight;
+        } else {
+            stencil[kept] = (node, weight);
+            kept += 1;
+        }
+    }
+    stencil.truncate(kept);
+}
+
 impl BodyContact {
     /// Keep contact `a`–`b` (normal from `b` into `a`'s side) as a constraint of this step.
     pub(super) fn constrain(
@@ -35,56 +84,57 @@ impl BodyContact {
         normal: Vector3<f64>,
     ) {
         let start = self.stencil.len();
-        self.push_feature(surface, a, 1.0);
-        self.push_feature(surface, b, -1.0);
-        // Each node once (a face's corners often share cells): the constraint's inverse
-        // mass `Σ s_k² w_k` needs the summed weight of a node, not its parts.
-        let entries = &mut self.stencil[start..];
-        entries.sort_unstable_by_key(|&(node, _)| node);
-        let mut kept = start;
-        for i in start..self.stencil.len() {
-            let (node, weight) = self.stencil[i];
-            if kept > start && self.stencil[kept - 1].0 == node {
-                self.stencil[kept - 1].1 += weight;
-            } else {
-                self.stencil[kept] = (node, weight);
-                kept += 1;
-            }
-        }
-        self.stencil.truncate(kept);
+        append_stencil(&mut self.stencil, &self.meshes, surface, (a, b));
         self.constraints.push(BodyConstraint {
             normal,
-            stencil: start as u32..kept as u32,
+            stencil: start as u32..self.stencil.len() as u32,
         });
     }
 
-    /// Append `feature`'s nodes and weights times `sign` to the stencil (zero weights left out).
-    fn push_feature(&mut self, surface: &SurfacePoints, feature: Feature, sign: f64) {
-        let stencil = &mut self.stencil;
-        let mut push = |ids: &[u32; 8], w: &[f64; 8], scale: f64| {
-            for c in 0..8 {
-                if w[c] * scale != 0.0 {
-                    stencil.push((ids[c], w[c] * scale * sign));
-                }
-            }
-        };
-        match feature {
-            Feature::Point(i) => push(&surface.nodes[i], &surface.weights[i], 1.0),
-            Feature::Face { mesh, tri, bary } => {
-                let m = &self.meshes[mesh];
-                for (&v, &w) in m.triangles[tri].iter().zip(&bary) {
-                    push(&m.nodes[v as usize], &m.weights[v as usize], w);
-                }
-            }
-            Feature::Edge { mesh, a, b, s } => {
-                let m = &self.meshes[mesh];
-                push(&m.nodes[a as usize], &m.weights[a as usize], 1.0 - s);
-                push(&m.nodes[b as usize], &m.weights[b as usize], s);
-            }
-            Feature::Static => {}
-        }
+    /// [`BodyContact::constrain`] with the stencil made already ([`Stencils`]).
+    pub(super) fn constrain_with(&mut self, stencil: &[(u32, f64)], normal: Vector3<f64>) {
+        let start = self.stencil.len();
+        self.stencil.extend_from_slice(stencil);
+        self.constraints.push(BodyConstraint {
+            normal,
+            stencil: start as u32..self.stencil.len() as u32,
+        });
     }
+}
 
+/// Append `feature`'s nodes and weights times `sign` to `stencil` (zero weights left out).
+fn push_feature(
+    stencil: &mut Vec<(u32, f64)>,
+    meshes: &[BodyMesh],
+    surface: &SurfacePoints,
+    feature: Feature,
+    sign: f64,
+) {
+    let mut push = |ids: &[u32; 8], w: &[f64; 8], scale: f64| {
+        for c in 0..8 {
+            if w[c] * scale != 0.0 {
+                stencil.push((ids[c], w[c] * scale * sign));
+            }
+        }
+    };
+    match feature {
+        Feature::Point(i) => push(&surface.nodes[i], &surface.weights[i], 1.0),
+        Feature::Face { mesh, tri, bary } => {
+            let m = &meshes[mesh];
+            for (&v, &w) in m.triangles[tri].iter().zip(&bary) {
+                push(&m.nodes[v as usize], &m.weights[v as usize], w);
+            }
+        }
+        Feature::Edge { mesh, a, b, s } => {
+            let m = &meshes[mesh];
+            push(&m.nodes[a as usize], &m.weights[a as usize], 1.0 - s);
+            push(&m.nodes[b as usize], &m.weights[b as usize], s);
+        }
+        Feature::Static => {}
+    }
+}
+
+impl BodyContact {
     /// This step's body–body contact constraints and their stencils (empty unless
     /// `body_constraints`).
     pub(crate) fn constraints(&self) -> (&[BodyConstraint], &[(u32, f64)]) {

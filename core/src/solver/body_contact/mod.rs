@@ -140,6 +140,7 @@ mod neighbours;
 pub(crate) mod overlap;
 mod prepare;
 pub(crate) use constraint::BodyConstraint;
+use constraint::Stencils;
 use detect::*;
 use mesh::{refine, BodyMesh};
 
@@ -500,12 +501,16 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
         for search in pair.searches.into_iter().flatten() {
             detect::end_pair(bc, search);
         }
-        if let Some(front) = pair.front {
-            // Contacts found deeper than this can reach the constraint's gap.
-            let least = pair.h - front;
-            bc.contacts.retain(|c| c.depth > least);
-        }
-        respond(bc, log, input, a, ContactPartner::Body(b), *layer, dt);
+        let stencils = pair.stencils.as_ref();
+        respond(
+            bc,
+            log,
+            input,
+            (a, ContactPartner::Body(b)),
+            stencils,
+            *layer,
+            dt,
+        );
     }
     for a in 0..n_bodies {
         for c in 0..bc.colliders.len() {
@@ -519,15 +524,8 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             }
             let friction = bc.colliders[c].friction;
             let collider_layer = ContactLayer { friction, ..*layer };
-            respond(
-                bc,
-                log,
-                input,
-                a,
-                ContactPartner::Collider(c),
-                collider_layer,
-                dt,
-            );
+            let partner = (a, ContactPartner::Collider(c));
+            respond(bc, log, input, partner, None, collider_layer, dt);
         }
     }
 }
@@ -579,6 +577,10 @@ struct PairSearches {
     front: Option<f64>,
     searches: [Option<detect::PairSearch>; 2],
     found: Vec<Contact>,
+    /// The stencils of `found`'s contacts that act (deeper than 0), made beside the search
+    /// when the pair's contacts are constraints (from the second step: the first decides
+    /// which pairs are).
+    stencils: Option<Stencils>,
 }
 
 /// Broad phase: the pairs of bodies whose boxes come within reach of each other (a contact
@@ -618,6 +620,7 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             front,
             searches,
             found: Vec::new(),
+            stencils: None,
         });
     }
     out
@@ -627,7 +630,8 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
 /// edge–edge contacts, into its `found`, pairs side by side on the world's team (`scratch`:
 /// one per pair): each search builds its own list if due and only reads the contact state,
 /// and yields its contacts in its samples' (or edges') order, so the result is the same on
-/// any thread count.
+/// any thread count. A constrained pair drops the contacts that cannot act in the step and
+/// makes the stencils of those that may.
 fn search_pairs(
     bc: &BodyContact,
     surface: &SurfacePoints,
@@ -643,6 +647,18 @@ fn search_pairs(
         }
         let (ab, region) = ((pair.a, pair.b), (pair.lo, pair.hi));
         detect_edges(bc, ab, region, pair.h, &mut scratch[0], &mut pair.found);
+        if let Some(front) = pair.front {
+            // Contacts found deeper than this can reach the constraint's gap.
+            let least = pair.h - front;
+            pair.found.retain(|c| c.depth > least);
+        }
+        pair.stencils = (bc.step > 1 && bc.constrains(pair.a, pair.b)).then(|| {
+            let mut stencils = Stencils::default();
+            for c in pair.found.iter().filter(|c| c.depth > 0.0) {
+                stencils.push(bc, surface, c.a, c.b);
+            }
+            stencils
+        });
     });
 }
 
@@ -688,8 +704,8 @@ fn respond(
     bc: &mut BodyContact,
     log: &mut ContactLog,
     input: &PassInput,
-    a: usize,
-    partner: ContactPartner,
+    (a, partner): (usize, ContactPartner),
+    stencils: Option<&Stencils>,
     layer: ContactLayer,
     dt: f64,
 ) {
@@ -756,11 +772,13 @@ fn respond(
     } else {
         None
     };
+    let mut acting = 0;
     for k in 0..bc.contacts.len() {
         let c = bc.contacts[k];
         if c.depth <= 0.0 {
             continue;
         }
+        acting += 1;
         let mass = mps * c.share;
         let point_layer = match hertz {
             Some(per_weight) => ContactLayer {
@@ -787,7 +805,10 @@ fn respond(
             apply(&mut bc.force, &bc.meshes, input.surface, c.b, -f);
         }
         if constrain {
-            bc.constrain(input.surface, c.a, c.b, c.normal);
+            match stencils {
+                Some(made) => bc.constrain_with(made.get(acting - 1), c.normal),
+                None => bc.constrain(input.surface, c.a, c.b, c.normal),
+            }
         }
         // f acts on feature a: on the body unless the features are flipped.
         let (f_body, n_body) = if c.flipped {
