@@ -517,6 +517,9 @@ fn run_bake(
             r.seconds.simulate,
         );
     }
+    if let Some(note) = redone_note(&r.frames) {
+        eprintln!("springbake: note: {note}");
+    }
     if inverted > 0 {
         eprintln!(
             "springbake: warning: {}",
@@ -613,6 +616,31 @@ fn watch(
             message: e.to_string(),
         })?;
     Ok(())
+}
+
+/// The note for a bake whose frames were taken again at more substeps because they folded a
+/// cell (`None` when none was): which frames, at how many substeps in the end.
+fn redone_note(frames: &[springbake_core::solver::FrameDiagnostics]) -> Option<String> {
+    let redone: Vec<_> = frames.iter().filter(|f| f.redone > 0).collect();
+    match redone[..] {
+        [] => None,
+        [f] => Some(format!(
+            "frame {} folded a cell and was taken again from its start at {} substeps",
+            f.frame, f.substeps
+        )),
+        _ => {
+            let mut listed: Vec<String> = (redone.iter().take(5))
+                .map(|f| format!("{} ({} substeps)", f.frame, f.substeps))
+                .collect();
+            if redone.len() > listed.len() {
+                listed.push(format!("… {} frames in all", redone.len()));
+            }
+            Some(format!(
+                "frames {} folded a cell and were taken again from their start at more substeps",
+                listed.join(", ")
+            ))
+        }
+    }
 }
 
 /// The warning for a bake whose report counts inverted cells: how many at most, in which

@@ -623,6 +623,59 @@ fn folded_cells_are_warned_of_with_their_frames_and_the_substeps_to_try() {
     assert!(!err.contains("inverted"), "{err}");
 }
 
+/// A frame that folds a cell is taken again at more substeps, and the CLI says which: the
+/// corpus's 2 m jelly cylinder (Blender's export) collapses under its own weight and folded
+/// two cells in frame 54 at its 13 automatic substeps, and the bake warned of them.
+#[test]
+fn a_frame_that_folds_a_cell_is_taken_again_at_more_substeps() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        corpus("blender/cylinder.obj"),
+        dir.path().join("cylinder.obj"),
+    )
+    .unwrap();
+    let scene = "[output]\npath = \"out.pc2\"\nframes = 72\n[world]\nfloor = 0.0\n\
+                 [[body]]\nsource = \"cylinder.obj\"\nmaterial = \"jelly\"\n";
+    std::fs::write(dir.path().join("jelly.toml"), scene).unwrap();
+    let out = support::springbake_in(
+        dir.path(),
+        &[
+            "bake",
+            "jelly.toml",
+            "--progress",
+            "quiet",
+            "--report",
+            "r.json",
+        ],
+    );
+    support::succeeded(&out);
+    let err = stderr(&out);
+    assert!(!err.contains("inverted"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).unwrap()).unwrap();
+    let frames = report["frames"].as_array().unwrap();
+    let redone: Vec<&serde_json::Value> = (frames.iter())
+        .filter(|f| f["redone"].as_u64() > Some(0))
+        .collect();
+    assert!(!redone.is_empty(), "no frame was taken again: {err}");
+    for f in &redone {
+        let (frame, substeps) = (
+            f["frame"].as_u64().unwrap(),
+            f["substeps"].as_u64().unwrap(),
+        );
+        let before = frames[frame as usize - 2]["substeps"].as_u64().unwrap();
+        assert!(
+            substeps >= 2 * before,
+            "frame {frame}: {substeps} after {before}"
+        );
+        let note = format!(
+            "frame {frame} folded a cell and was taken again from its start at {substeps} substeps"
+        );
+        assert!(redone.len() > 1 || err.contains(&note), "{err}");
+    }
+    assert!(frames.iter().all(|f| f["inverted_cells"] == 0), "{err}");
+}
+
 /// Two cubes of one OBJ sunk a quarter of a metre into each other are named before the bake
 /// as glued (they would otherwise be thrown apart); two a centimetre apart are not.
 #[test]

@@ -656,9 +656,10 @@ pub fn change_material(
         let mu = ma * mb / (ma + mb);
         s.damping[i] = 2.0 * to.damping_ratio * (s.stiffness[i] * mu).sqrt();
     }
-    for i in 0..world.surface.len() {
-        if world.surface.body[i] as usize == h.0 {
-            world.surface.body_mass[i] *= rho_ratio;
+    let surface = std::sync::Arc::make_mut(&mut world.surface);
+    for i in 0..surface.len() {
+        if surface.body[i] as usize == h.0 {
+            surface.body_mass[i] *= rho_ratio;
         }
     }
     world.bodies[h.0].deformation_damping = crate::solver::deformation_damping::damping_rate(

@@ -159,7 +159,7 @@ fn apply_contact_scale(scene: &SceneFile, world: &mut World, bodies: &[PreparedB
         if s == 1.0 {
             continue;
         }
-        let surface = &mut world.surface;
+        let surface = std::sync::Arc::make_mut(&mut world.surface);
         for i in 0..surface.len() {
             if surface.body[i] as usize == b.handle.0 {
                 surface.share[i] *= s;

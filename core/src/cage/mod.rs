@@ -271,7 +271,7 @@ impl Cage {
             .collect();
         let total_share: f64 = shares.iter().sum();
         let body_mass: f64 = world.nodes.mass[range.clone()].iter().sum();
-        let s = &mut world.surface;
+        let s = std::sync::Arc::make_mut(&mut world.surface);
         for (i, nodes) in embedding.nodes.iter().enumerate() {
             // How far the point may be from its tet's first node: three times its rest
             // distance or the tet's size, whichever is larger.

@@ -40,6 +40,9 @@ pub struct FrameDiagnostics {
     pub newmark_max_iterations: u32,
     /// Steps whose iterations stopped at the cap without reaching the tolerance.
     pub newmark_cap_hits: u32,
+    /// How many times the frame was taken again from its start at twice the substeps because
+    /// it folded a cell (the XPBD solver at automatic substeps; `substeps` is the last take's).
+    pub redone: u32,
     pub inverted_cells: usize,
     /// Deepest penetration into any contact layer, metres.
     pub max_penetration: f64,

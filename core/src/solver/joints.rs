@@ -159,7 +159,7 @@ pub fn join_nodes(world: &mut World, i: usize, j: usize) -> Result<SharedNode, J
             s.rest_length[k] = (world.nodes.position[a] - world.nodes.position[b]).norm();
         }
     }
-    for ids in &mut world.surface.nodes {
+    for ids in &mut std::sync::Arc::make_mut(&mut world.surface).nodes {
         for id in ids.iter_mut().filter(|id| **id == j32) {
             *id = i32_;
         }

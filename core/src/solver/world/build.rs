@@ -160,15 +160,14 @@ impl World {
             .collect();
         let total_share: f64 = shares.iter().sum();
         let body_mass: f64 = self.nodes.mass[info.nodes.clone()].iter().sum();
+        let surface = std::sync::Arc::make_mut(&mut self.surface);
         for (i, nodes) in embedding.nodes.iter().enumerate() {
-            self.surface.nodes.push(nodes.map(|n| n + base));
-            self.surface.weights.push(embedding.weights[i]);
-            self.surface.share.push(shares[i]);
-            self.surface.body.push(body.0 as u32);
-            self.surface
-                .reach
-                .push(3.0 * 3f64.sqrt() * lattice.cell_size);
-            self.surface.body_mass.push(if total_share > 0.0 {
+            surface.nodes.push(nodes.map(|n| n + base));
+            surface.weights.push(embedding.weights[i]);
+            surface.share.push(shares[i]);
+            surface.body.push(body.0 as u32);
+            surface.reach.push(3.0 * 3f64.sqrt() * lattice.cell_size);
+            surface.body_mass.push(if total_share > 0.0 {
                 body_mass * shares[i] / total_share
             } else {
                 0.0

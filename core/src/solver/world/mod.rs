@@ -43,6 +43,7 @@ mod build;
 mod euler;
 mod measures;
 mod prepared;
+mod redo;
 mod surface;
 
 pub(crate) use euler::SymplecticEuler;
@@ -151,8 +152,9 @@ pub struct World {
     pub live_capsules: Vec<Capsule>,
     /// Simulated time, seconds.
     pub time: f64,
-    /// Points of the display surfaces that take the rigid contacts of their bodies.
-    pub surface: SurfacePoints,
+    /// Points of the display surfaces that take the rigid contacts of their bodies (shared
+    /// with the copy a frame may be taken again from: `Arc::make_mut` to change them).
+    pub surface: std::sync::Arc<SurfacePoints>,
     /// Per node: whether the node itself takes rigid contacts (false for the nodes of a body
     /// with a contact surface: its mesh touches the floor, not its lattice).
     pub node_contact: Vec<bool>,
@@ -217,7 +219,7 @@ impl World {
             manipulators: Vec::new(),
             live_capsules: Vec::new(),
             time: 0.0,
-            surface: SurfacePoints::default(),
+            surface: Default::default(),
             node_contact: Vec::new(),
             constraints: Vec::new(),
             volume: Vec::new(),
@@ -356,34 +358,52 @@ impl World {
         frame: usize,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<FrameDiagnostics, SimulationError> {
-        let choice = self.choose_substeps(frame_dt);
-        let mut acc = FrameAccumulator::default();
+        let mut choice = self.choose_substeps(frame_dt);
         let (kinetic, elastic, gravity) = self.frame_energies();
-        self.contact_log.begin_frame();
-        let census = if self.on_device() {
-            self.advance_on_device(choice.substeps, choice.dt, &mut acc)?
-        } else {
-            for _ in 0..choice.substeps {
-                self.step_accumulate(choice.dt, &mut acc);
+        // A frame that folds a cell is taken again from here at twice the substeps (`redo`).
+        let start = self.redo_point();
+        let mut redos = 0;
+        let (acc, census, inverted) = loop {
+            let mut acc = FrameAccumulator::default();
+            self.contact_log.begin_frame();
+            let census = if self.on_device() {
+                self.advance_on_device(choice.substeps, choice.dt, &mut acc)?
+            } else {
+                for _ in 0..choice.substeps {
+                    self.step_accumulate(choice.dt, &mut acc);
+                }
+                None
+            };
+            self.contact_log.end_frame();
+            if cancelled() {
+                return Err(SimulationError::Cancelled);
             }
-            None
+            if let Some(message) = self.field_error.take() {
+                return Err(SimulationError::Field(message));
+            }
+            self.check_finite(frame)?;
+            let mut inverted = census.map(|c| c.inverted_cells);
+            if let Some(start) = start.as_deref().filter(|_| redos < redo::MAX_REDOS) {
+                let now = *inverted.get_or_insert_with(|| self.inverted_cells());
+                let doubled = super::xpbd::doubled_substeps(choice, frame_dt);
+                if let Some(doubled) = doubled.filter(|_| now > 0 && now > start.inverted_cells()) {
+                    self.redo_from(start);
+                    super::xpbd::hold_doubling(self);
+                    (choice, redos) = (doubled, redos + 1);
+                    continue;
+                }
+            }
+            break (acc, census, inverted);
         };
-        self.contact_log.end_frame();
-        if cancelled() {
-            return Err(SimulationError::Cancelled);
-        }
-        if let Some(message) = self.field_error.take() {
-            return Err(SimulationError::Field(message));
-        }
-        self.check_finite(frame)?;
         let key = self.position_key();
         self.file_device_census(key, census);
         if let Some(c) = census {
             self.elastic_memo = Some((key, c.elastic_energy));
         }
         let energies = self.frame_energies_at(key);
-        let mut diag = self.diagnostics_from(frame, energies, census.map(|c| c.inverted_cells));
+        let mut diag = self.diagnostics_from(frame, energies, inverted);
         diag.substeps = choice.substeps;
+        diag.redone = redos;
         diag.dispersion_corrections = acc.corrections;
         diag.dispersion_iterations = acc.iterations;
         diag.dispersion_cap_hits = acc.cap_hits;

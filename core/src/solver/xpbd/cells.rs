@@ -117,6 +117,8 @@ pub(crate) struct CellSet {
     pub shortest_edge: f64,
     /// Largest `sqrt(E/ρ)` of any cell's material, m/s.
     pub wave_speed: f64,
+    /// Smallest `sqrt(E/ρ)` of any cell's material, m/s (0 without cells).
+    pub slowest_wave: f64,
 }
 
 /// Display-surface points grouped by their cell (see [`CellSet::point_groups`]).
@@ -229,6 +231,11 @@ impl CellSet {
             edge
         };
         self.wave_speed = self.wave_speed.max(speed);
+        self.slowest_wave = if self.slowest_wave > 0.0 {
+            self.slowest_wave.min(speed)
+        } else {
+            speed
+        };
     }
 
     pub(crate) fn len(&self) -> usize {

@@ -64,6 +64,13 @@ impl Crowding {
         self.level = level.min(max_level);
         self.level
     }
+
+    /// One doubling more, from the frame starting at `time` on, held as a crowded frame's
+    /// is: that frame folded a cell and is taken again at twice its substeps.
+    pub(crate) fn raise(&mut self, time: f64) {
+        self.level += 1;
+        self.raised_at = time;
+    }
 }
 
 #[cfg(test)]

@@ -47,12 +47,14 @@ use super::manipulator::Capsule;
 use super::substeps::SubstepChoice;
 use super::team::{self, Chunks};
 use super::{World, PAR_CHUNK};
-use cells::{CellInput, CellSet, PointGroups};
+pub(crate) use cells::CellSet;
+use cells::{CellInput, PointGroups};
 use glue::Glue;
 use nalgebra::Vector3;
 use restitution::Restitution;
 use rigid_contacts::{point_tasks, rigid_contacts, PointSums};
 use std::ops::Range;
+use std::sync::Arc;
 
 type V3 = Vector3<f64>;
 
@@ -101,7 +103,7 @@ pub(crate) struct Model {
     points: PointGroups,
     /// Per point in that order, what the contact pass reads of it (in the order it reads
     /// them: from `World::surface` in point order, a pass missed the cache at every point).
-    visits: Vec<PointVisit>,
+    visits: Arc<[PointVisit]>,
     /// Per group of `points`: whether its points all lie in the convex hull of one cell's
     /// nodes (the same nodes, weights that are not negative and add up to 1), so that a group
     /// whose nodes are all clear of the surfaces ([`contact::Surfaces::clear_of_hull`]) has
@@ -267,7 +269,7 @@ impl Model {
                 weights: world.surface.weights[i as usize],
                 reach: world.surface.reach[i as usize],
             })
-            .collect::<Vec<_>>();
+            .collect::<Arc<[_]>>();
         let group_in_hull = points
             .groups
             .iter()
@@ -504,6 +506,49 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
         substeps: n as u32,
         dt: frame_dt / n,
         limited_by,
+    }
+}
+
+/// `choice` at twice the substeps, for a frame taken again after it folded a cell (the
+/// world's `redo`), at most the impact cap; `None` when it is there already.
+pub(crate) fn doubled_substeps(choice: SubstepChoice, frame_dt: f64) -> Option<SubstepChoice> {
+    let cap = (MAX_IMPACT_SUBSTEP_RATE * frame_dt * (1.0 - 1e-12))
+        .ceil()
+        .max(1.0) as u32;
+    let substeps = choice.substeps.saturating_mul(2).min(cap);
+    (substeps > choice.substeps).then(|| SubstepChoice {
+        substeps,
+        dt: frame_dt / f64::from(substeps),
+        limited_by: "collapse",
+    })
+}
+
+/// The slowest elastic wave of any cell, `sqrt(E/ρ)` in m/s; `None` without cells (or
+/// before the model is built).
+pub(crate) fn slowest_wave(world: &World) -> Option<f64> {
+    let speed = world.xpbd.as_ref()?.cells.slowest_wave;
+    (speed > 0.0).then_some(speed)
+}
+
+/// The world's cells, taken out of its model (`None` before the model is built), to be put
+/// back with [`put_cells`] (the world's `redo` copies a world without them).
+pub(crate) fn take_cells(world: &mut World) -> Option<CellSet> {
+    world.xpbd.as_mut().map(|m| std::mem::take(&mut m.cells))
+}
+
+/// Put back the cells [`take_cells`] took.
+pub(crate) fn put_cells(world: &mut World, cells: CellSet) {
+    if let Some(model) = world.xpbd.as_mut() {
+        model.cells = cells;
+    }
+}
+
+/// Keep a frame's doubling for the frames after it ([`crowding::Crowding::raise`]): the frame
+/// starting now is taken again at twice the substeps because it folded a cell.
+pub(crate) fn hold_doubling(world: &mut World) {
+    let time = world.time;
+    if let Some(model) = world.xpbd.as_mut() {
+        model.crowding.raise(time);
     }
 }
 

@@ -98,7 +98,7 @@ fn rigid_contacts_with(
         out.capsule_work += sums.work;
         return out;
     }
-    for (&i, visit) in model.points.order.iter().zip(&model.visits) {
+    for (&i, visit) in model.points.order.iter().zip(model.visits.iter()) {
         let i = i as usize;
         if colliders {
             model.collider_touch[i] = None;
