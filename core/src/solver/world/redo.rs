@@ -3,9 +3,9 @@
 //! The XPBD solver's automatic substeps follow the bodies' stiffness and speed, and the
 //! crowding rule (`xpbd::crowding`) doubles them once a frame starts with a cell near
 //! collapse. An impact that folds a cell within one frame gives no such warning: the corpus's
-//! jelly snowman (`blender/two_objects.glb`) folded a cell of its body where the head landed
-//! at 6.7 m/s, in frame 20 at 60 substeps, and the bake ended with a warning. At 120 substeps
-//! from the start nothing folded.
+//! jelly snowman (`blender/two_objects.glb`) folded a cell in frame 20 at 60 substeps, as its
+//! head reached the floor beside the body at 6.7 m/s, and the bake ended with a warning. At
+//! 120 substeps from the start nothing folded.
 //!
 //! So a frame that may fold keeps a copy of the world at its start; if it ends with more
 //! inverted cells than it started with, it is taken again from that copy at twice the
