@@ -747,3 +747,52 @@ fn a_body_that_starts_inside_a_collider_is_named_before_the_bake() {
         assert_eq!(named, inside, "cube at y = {y}: {err}");
     }
 }
+
+/// A wooden plank pinned at one end is held rigid, and the CLI says so before the bake; with
+/// `[solver] stiff_bodies = "elastic"` it is solved as cells (no note) and sags far more than
+/// wood can; a value that is neither names the key (exit 2).
+#[test]
+fn a_pinned_wooden_plank_is_held_rigid_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (points, triangles) = springbake_core::shapes::box_mesh([0.0, 1.0, 0.0], [2.0, 1.05, 0.3]);
+    let mut obj = String::from("o plank\n");
+    for p in &points {
+        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for t in triangles {
+        let [a, b, c] = t.map(|k| k + 1);
+        obj += &format!("f {a} {b} {c}\n");
+    }
+    std::fs::write(dir.path().join("plank.obj"), obj).unwrap();
+    let scene = |solver: &str| {
+        format!(
+            "[output]\npath = \"out.pc2\"\nframes = 12\n{solver}\
+             [[body]]\nsource = \"plank.obj\"\nname = \"plank\"\nmaterial = \"wood\"\ncells = 20\n\
+             [[constraint]]\nbody = \"plank\"\nbox = {{ min = [-0.01, 0.9, -0.1], max = [0.05, 1.1, 0.4] }}\n"
+        )
+    };
+    // The lowest point of the last frame, from the report-free PC2: y of every point.
+    let lowest = |dir: &std::path::Path| {
+        let bytes = std::fs::read(dir.join("out.pc2")).unwrap();
+        let points = u32::from_le_bytes(bytes[16..20].try_into().unwrap()) as usize;
+        let frame = &bytes[bytes.len() - points * 12..];
+        (0..points)
+            .map(|i| f32::from_le_bytes(frame[i * 12 + 4..i * 12 + 8].try_into().unwrap()))
+            .fold(f32::INFINITY, f32::min)
+    };
+    let err = support::bake_scene(dir.path(), "held.toml", &scene(""));
+    assert!(err.contains("body \"plank\" is held rigid"), "{err}");
+    let held = lowest(dir.path());
+    assert!((held - 1.0).abs() < 1e-3, "held plank's lowest point {held} m");
+    let elastic = "[solver]\nstiff_bodies = \"elastic\"\n";
+    let err = support::bake_scene(dir.path(), "elastic.toml", &scene(elastic));
+    assert!(!err.contains("held rigid"), "{err}");
+    let sagged = lowest(dir.path());
+    assert!(sagged < 0.95, "elastic plank's lowest point {sagged} m");
+    let bogus = "[solver]\nstiff_bodies = \"stiff\"\n";
+    std::fs::write(dir.path().join("bogus.toml"), scene(bogus)).unwrap();
+    let o = support::springbake_in(dir.path(), &["bake", "bogus.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(err.contains("stiff_bodies") || err.contains("rigid"), "{err}");
+}

@@ -327,6 +327,22 @@ pub struct SolverSection {
     /// `"cpu"`.
     #[serde(default)]
     pub device: DeviceSpec,
+    /// Bodies far too stiff for their lattice to bend at the XPBD solver's substeps (wood,
+    /// steel, glass: a wave speed of 1000 m/s and more, and no sag under gravity an artist
+    /// could see): `"rigid"` (default: held to their best-fit rigid motion, see
+    /// `solver::xpbd::held`) or `"elastic"` (solved as cells like any body: they then bend as
+    /// if their material were far softer).
+    #[serde(default)]
+    pub stiff_bodies: StiffBodies,
+}
+
+/// `[solver] stiff_bodies` (see [`SolverSection::stiff_bodies`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StiffBodies {
+    #[default]
+    Rigid,
+    Elastic,
 }
 
 /// `[solver] device` (see [`SolverSection::device`]).
@@ -393,6 +409,7 @@ impl Default for SolverSection {
             integrator: IntegratorSpec::default(),
             newmark_beta: default_beta(),
             device: DeviceSpec::default(),
+            stiff_bodies: StiffBodies::default(),
         }
     }
 }

@@ -232,6 +232,24 @@ pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
         .collect()
 }
 
+/// Bodies the XPBD solver holds rigid because their material is far too stiff for their
+/// lattice to bend (wood, steel): name them, and how to have them solved elastic instead.
+pub fn held_bodies_notes(prepared: &mut Prepared) -> Vec<String> {
+    prepared
+        .world
+        .held_bodies()
+        .into_iter()
+        .map(|body| {
+            format!(
+                "body \"{body}\" is held rigid: its material is too stiff for a deformation \
+                 to show at its size, and far too stiff for its lattice to bend right at the \
+                 solver's substeps (`[solver] stiff_bodies = \"elastic\"` solves it as cells, \
+                 far softer than its material)"
+            )
+        })
+        .collect()
+}
+
 /// A body that starts inside a static collider, deeper than the contact layer, is not held
 /// in by it: the collider's faces push only outwards, so the body is thrown out through the
 /// first face it reaches (a cube dropped inside a closed box collider gained 7.8 kJ at its

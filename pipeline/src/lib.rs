@@ -615,6 +615,9 @@ pub fn bake(
         for text in budget::interpenetrating_parts_notes(&mut prepared) {
             note(&text);
         }
+        for text in budget::held_bodies_notes(&mut prepared) {
+            note(&text);
+        }
         for text in budget::inside_collider_notes(&prepared) {
             note(&text);
         }

@@ -351,6 +351,8 @@ pub fn prepare(
         ..WorldSettings::default()
     };
     let mut world = World::new(settings);
+    world.hold_stiff_bodies =
+        scene.solver.stiff_bodies == springbake_core::scene::StiffBodies::Rigid;
     for m in &scene.manipulator {
         let mut keys: Vec<ManipulatorKey> = m
             .keys

@@ -45,6 +45,9 @@ impl Simulation {
         for text in springbake_pipeline::budget::interpenetrating_parts_notes(&mut prepared) {
             eprintln!("springbake: note: {text}");
         }
+        for text in springbake_pipeline::budget::held_bodies_notes(&mut prepared) {
+            eprintln!("springbake: note: {text}");
+        }
         for text in springbake_pipeline::budget::inside_collider_notes(&prepared) {
             eprintln!("springbake: note: {text}");
         }

@@ -180,6 +180,11 @@ pub struct World {
     pub(crate) contact_log: ContactLog,
     /// Body–body and body–collider contact (see [`super::body_contact`]).
     pub(crate) body_contact: BodyContact,
+    /// Whether the XPBD solver holds bodies far too stiff for their lattice to bend at its
+    /// substeps (wood, steel) to their best-fit rigid motion (default; see
+    /// `super::xpbd::held`). Off, they are solved as elastic cells like any other body,
+    /// and bend as if their material were far softer.
+    pub hold_stiff_bodies: bool,
     /// Rest position of every node (where it was added): the XPBD cells' rest shapes.
     pub(crate) rest: Vec<Vector3<f64>>,
     /// The XPBD solver's derived model and buffers, built at its first step.
@@ -231,6 +236,7 @@ impl World {
             newmark: None,
             contact_log: ContactLog::default(),
             body_contact: BodyContact::default(),
+            hold_stiff_bodies: true,
             rest: Vec::new(),
             xpbd: None,
             energy_budget: None,

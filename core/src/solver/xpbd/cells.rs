@@ -130,6 +130,9 @@ pub(crate) struct PointGroups {
     pub groups: Vec<Range<u32>>,
     /// Ranges of `groups`: the groups of one colour (the last may be the points in no cell).
     pub colours: Vec<Range<u32>>,
+    /// Per range of `colours`: whether its groups' cells share no node (a colour of the set
+    /// other than its serial one), so its groups may run side by side.
+    pub parallel: Vec<bool>,
 }
 
 /// Colours past this one go to one serial colour.
@@ -396,20 +399,10 @@ impl CellSet {
             let c = colour_of_group[first];
             let end = first + colour_of_group[first..].partition_point(|&k| k == c);
             groups.colours.push(first as u32..end as u32);
+            (groups.parallel).push(c < self.colours.len() && Some(c) != self.serial_colour);
             first = end;
         }
         groups
-    }
-
-    /// The colour whose cells may share nodes (past [`MAX_COLOURS`]): solved one cell after
-    /// the other.
-    pub(crate) fn serial_colour(&self) -> Option<usize> {
-        self.serial_colour
-    }
-
-    /// How many colours the cells take.
-    pub(crate) fn colour_count(&self) -> usize {
-        self.colours.len()
     }
 
     /// Whether some cells share nodes within their colour (more than [`MAX_COLOURS`] were

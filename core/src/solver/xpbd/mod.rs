@@ -31,6 +31,7 @@ mod cells;
 mod contact;
 mod crowding;
 mod glue;
+mod held;
 mod lane_io;
 mod lanes;
 mod restitution;
@@ -170,6 +171,8 @@ pub(crate) struct Model {
     glue: Glue,
     /// The substeps' doublings for cells near collapse (`crowding`).
     crowding: Crowding,
+    /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
+    held: held::Held,
 }
 
 /// A display-surface point as the contact pass reads it (`World::surface`'s records).
@@ -238,29 +241,47 @@ impl Model {
         let n = world.nodes.len();
         let mut cells = CellSet::default();
         let mut springs = Vec::new();
+        let held = held::Held::build(world);
+        // The display-surface points are grouped by cell over every cell, the held bodies'
+        // too (so a cell's points are skipped whole while clear of every surface), and only
+        // the other cells are solved.
+        let mut every_cell = (!held.is_empty()).then(CellSet::default);
         for (b, body) in world.bodies.iter().enumerate() {
             if world.rigid.iter().any(|r| r.body == b) {
                 continue;
             }
             match &body.material {
                 Some(material) if !body.cells.is_empty() => {
+                    let holds = held.holds(world, b);
                     for (c, cell) in body.cells.iter().enumerate() {
-                        cells.push(CellInput {
+                        let input = || CellInput {
                             nodes: cell.map(|i| kept[i as usize]),
                             rest: cell.map(|i| world.rest[i as usize]),
                             material,
                             stiffness_scale: body.cell_stiffness.get(c).copied().unwrap_or(1.0),
                             axis_scale: body.axis_stiffness,
-                        });
+                        };
+                        if let Some(every) = every_cell.as_mut() {
+                            every.push(input());
+                        }
+                        if !holds {
+                            cells.push(input());
+                        }
                     }
                 }
                 _ => springs.extend(body.springs.clone()),
             }
         }
         cells.finish(n);
+        let grouping = every_cell.map(|mut every| {
+            every.finish(n);
+            every
+        });
+        let grouping = grouping.as_ref().unwrap_or(&cells);
         let resolve = |ids: &[u32; 8]| ids.map(|i| kept[i as usize]);
-        let points = cells.point_groups(world.surface.nodes.iter().map(resolve));
-        let point_tasks = point_tasks(&points, &cells);
+        let points = grouping.point_groups(world.surface.nodes.iter().map(resolve));
+        let shortest_cell = grouping.shortest_edge;
+        let point_tasks = point_tasks(&points);
         let visits = points
             .order
             .iter()
@@ -292,8 +313,8 @@ impl Model {
             .iter()
             .map(|&i| s.rest_length[i])
             .fold(f64::INFINITY, f64::min);
-        let shortest_edge = if cells.len() > 0 {
-            cells.shortest_edge.min(shortest_spring)
+        let shortest_edge = if grouping.len() > 0 {
+            shortest_cell.min(shortest_spring)
         } else {
             shortest_spring
         };
@@ -333,6 +354,7 @@ impl Model {
             restitution: Restitution::build(world),
             glue: Glue::default(),
             crowding: Crowding::default(),
+            held,
         }
     }
 
@@ -365,14 +387,17 @@ impl Model {
     /// Whether the restitution of stiff bodies can act at the substeps the material's
     /// stiffness asks for (the longest [`choose_substeps`] picks).
     pub(crate) fn restitution_may_act(&self) -> bool {
-        let (h, speed) = (self.shortest_edge, self.cells.wave_speed);
+        let (h, speed) = (
+            self.shortest_edge,
+            self.cells.wave_speed.max(self.held.wave_speed),
+        );
         let by_wave = if h > 0.0 && speed > 0.0 {
             SUBSTEPS_PER_WAVE_CROSSING * speed / h
         } else {
             0.0
         };
         let rate = by_wave.clamp(MIN_SUBSTEP_RATE, MAX_STIFFNESS_SUBSTEP_RATE);
-        self.restitution.acts_at(1.0 / rate)
+        self.restitution.acts_at(1.0 / rate) || !self.held.is_empty()
     }
 
     /// Elastic energy of the cells and constraint springs now, J, as the last substep's
@@ -428,6 +453,25 @@ impl World {
     }
 }
 
+impl World {
+    /// The bodies the XPBD solver holds to their rigid motion because their material is far
+    /// too stiff for their lattice to bend (`held`), by name. Builds the solver's model if no
+    /// step has yet; empty under the papers' integrators.
+    pub fn held_bodies(&mut self) -> Vec<String> {
+        if self.settings.integrator != super::Integrator::Xpbd {
+            return Vec::new();
+        }
+        if self.xpbd.is_none() {
+            self.xpbd = Some(Model::build(self));
+        }
+        let held = self.xpbd.as_ref().map(|m| &m.held);
+        (0..self.bodies.len())
+            .filter(|&b| held.is_some_and(|h| h.holds(self, b)))
+            .map(|b| self.bodies[b].name.clone())
+            .collect()
+    }
+}
+
 /// Per node, the node that stands for it in the solve (a joint's follower: its kept node).
 fn kept_nodes(world: &World) -> Vec<u32> {
     let mut kept: Vec<u32> = (0..world.nodes.len() as u32).collect();
@@ -451,7 +495,7 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
         world.xpbd = Some(Model::build(world));
     }
     let (h, speed) = world.xpbd.as_ref().map_or((f64::INFINITY, 0.0), |m| {
-        (m.shortest_edge, m.cells.wave_speed)
+        (m.shortest_edge, m.cells.wave_speed.max(m.held.wave_speed))
     });
     // Rates into counts for this frame (a hair under, so 240/s × 1/24 s is 10, not 11).
     let count = |rate: f64| (rate * frame_dt * (1.0 - 1e-12)).ceil().max(1.0);
@@ -729,6 +773,8 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
         .cells
         .solve(&mut world.nodes.position, &model.inv_mass, dt);
     solve_springs(world, &model, dt);
+    let x = &mut world.nodes.position;
+    (model.held).hold(x, &world.rest, &world.nodes.mass, &model.inv_mass);
     torque::cancel_internal_torque(world, &mut model);
     model.glue.solve(&mut world.nodes.position, &model.inv_mass);
     model.begin_contacts();
@@ -742,6 +788,8 @@ pub(crate) fn step(world: &mut World, dt: f64) -> StepOutput {
     let mut out = rigid_contacts(world, &mut model, time, dt);
     out.touched |= bodies.touched;
     out.max_depth = out.max_depth.max(bodies.depth);
+    let x = &mut world.nodes.position;
+    (model.held).hold(x, &world.rest, &world.nodes.mass, &model.inv_mass);
     if out.touched {
         let (w, moved) = (&model.inv_mass, &model.moved);
         model

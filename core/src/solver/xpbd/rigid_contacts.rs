@@ -4,7 +4,7 @@
 //! no node), or one after the other in visiting order when the world has static colliders.
 //! The constraint math is [`super::contact`]'s; this module owns the passes over the points.
 
-use super::cells::{CellSet, PointGroups};
+use super::cells::PointGroups;
 use super::contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
 use super::{push_capsules, Model, StepOutput, V3};
 use crate::solver::manipulator::Capsule;
@@ -172,25 +172,23 @@ pub(super) struct PointSums {
 /// Cells' worth of points a task of the points' pass takes.
 const POINT_GROUPS_PER_TASK: usize = 16;
 
-/// How many groups of `groups` a task of colour `colour` takes: all of them where the points'
-/// cells may share nodes (the cells' serial colour, and the points in no cell, last).
-fn point_groups_per_task(colour: usize, groups: usize, cells: &CellSet) -> usize {
-    if Some(colour) == cells.serial_colour() || colour >= cells.colour_count() {
-        groups.max(1)
-    } else {
+/// How many groups of `groups` a task of a colour takes: all of them where the points' cells
+/// may share nodes (not `parallel`: the cells' serial colour, and the points in no cell,
+/// last).
+fn point_groups_per_task(parallel: bool, groups: usize) -> usize {
+    if parallel {
         POINT_GROUPS_PER_TASK
+    } else {
+        groups.max(1)
     }
 }
 
 /// Tasks of the points' pass by colour over all colours.
-pub(super) fn point_tasks(points: &PointGroups, cells: &CellSet) -> usize {
-    points
-        .colours
-        .iter()
-        .enumerate()
-        .map(|(colour, groups)| {
+pub(super) fn point_tasks(points: &PointGroups) -> usize {
+    (points.colours.iter().zip(&points.parallel))
+        .map(|(groups, &parallel)| {
             let n = groups.len();
-            n.div_ceil(point_groups_per_task(colour, n, cells))
+            n.div_ceil(point_groups_per_task(parallel, n))
         })
         .sum()
 }
@@ -255,7 +253,6 @@ fn contact_points_by_colour(
         point_sums,
         in_contact,
         found,
-        cells,
         ..
     } = model;
     let (xs, shifts) = (Disjoint::new(x), Disjoint::new(contact_shift));
@@ -353,7 +350,7 @@ fn contact_points_by_colour(
     for (colour, range) in points.colours.iter().enumerate() {
         let first_group = range.start as usize;
         let groups = &points.groups[first_group..range.end as usize];
-        let per_task = point_groups_per_task(colour, groups.len(), cells);
+        let per_task = point_groups_per_task(points.parallel[colour], groups.len());
         let tasks = groups.len().div_ceil(per_task);
         team::for_each(
             Chunks::new(&mut point_sums[slot..slot + tasks], 1),
