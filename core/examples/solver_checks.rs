@@ -69,9 +69,10 @@ fn rebound(material: &Material, integrator: Integrator) {
     let t0 = Instant::now();
     let r = support::rebound(&mut w, 72);
     println!(
-        "rebound {:>12}: ball r 0.1 m from 1 m bounces to {:.3} m ({} substeps, inverted max {}, {:.1} ms/frame)",
+        "rebound {:>12}: ball r 0.1 m from 1 m bounces to {:.3} m (volume within {:.1} %, {} substeps, inverted max {}, {:.1} ms/frame)",
         material.name,
         r.peak,
+        r.volume_change * 100.0,
         r.substeps,
         r.inverted,
         t0.elapsed().as_secs_f64() * 1e3 / 72.0
@@ -98,7 +99,14 @@ fn main() {
             .iter()
             .filter(|a| {
                 [
-                    "rebound", "fidelity", "spin", "column", "sweep", "ball", "tiny",
+                    "rebound",
+                    "fidelity",
+                    "spin",
+                    "column",
+                    "cantilever",
+                    "sweep",
+                    "ball",
+                    "tiny",
                 ]
                 .contains(&a.as_str())
             })
@@ -126,12 +134,16 @@ fn main() {
     if wanted("column") {
         column(integrator);
     }
+    if wanted("cantilever") {
+        cantilever(integrator);
+    }
     if wanted("sweep") {
         jelly_sweep(integrator, 2.0);
         jelly_sweep(integrator, 1.0);
     }
     if wanted("ball") {
-        jelly_ball(integrator);
+        jelly_ball(integrator, true);
+        jelly_ball(integrator, false);
     }
     if wanted("tiny") {
         tiny_cube(integrator);
@@ -213,6 +225,55 @@ fn spin(integrator: Integrator) {
     );
 }
 
+/// A cantilever (1 × 0.1 × 0.1 m, 20 cells long) clamped at x = 0, sagging under its own
+/// weight for 4 s: tip sag against Euler–Bernoulli's `w L⁴ / (8 E I)`, which does not depend
+/// on ν (a model that locks as ν → 0.5 sags less). E = 100 MPa (ρ = 1000) at ν = 0.3, 0.47 and
+/// 0.4995 (run with `--substeps 300` to see it converge: at the automatic 30 the sweep leaves
+/// it far softer), then wood held rigid and solved elastic.
+fn cantilever(integrator: Integrator) {
+    let (p, t) = box_mesh([0.0, 0.5, 0.0], [1.0, 0.6, 0.1]);
+    let b = body((p, t), 20);
+    let sag = |m: &Material, hold: bool| {
+        let mut w = world(&b, m, integrator, Vector3::zeros(), false);
+        w.hold_stiff_bodies = hold;
+        let start = w.nodes.position.clone();
+        let root: Vec<usize> = (0..start.len()).filter(|&i| start[i].x < 1e-9).collect();
+        w.pin(&root).expect("pins");
+        let tip: Vec<usize> = (0..start.len())
+            .filter(|&i| start[i].x > 1.0 - 1e-9)
+            .collect();
+        for f in 1..=96 {
+            frame(&mut w, f);
+        }
+        let sum: f64 = tip
+            .iter()
+            .map(|&i| start[i].y - w.nodes.position[i].y)
+            .sum();
+        sum / tip.len() as f64
+    };
+    let theory = |m: &Material| {
+        let load = m.density_kg_m3 * 9.81 * 0.01;
+        load / (8.0 * m.young_pa * 0.1 * 0.1f64.powi(3) / 12.0)
+    };
+    let mut line = String::new();
+    for nu in [0.3, 0.47, 0.4995] {
+        let m = Material::new("beam", 1.0e8, nu, 1000.0, 0.5).expect("material");
+        line += &format!(" nu {nu} {:.2} mm;", sag(&m, true) * 1e3);
+    }
+    let m = Material::new("beam", 1.0e8, 0.3, 1000.0, 0.5).expect("material");
+    println!(
+        "cantilever E 100 MPa tip sag:{line} Euler-Bernoulli {:.2} mm",
+        theory(&m) * 1e3
+    );
+    let wood = Material::preset("wood").expect("preset");
+    println!(
+        "cantilever wood tip sag: held rigid {:.3} mm, elastic {:.1} mm; Euler-Bernoulli {:.3} mm",
+        sag(&wood, true) * 1e3,
+        sag(&wood, false) * 1e3,
+        theory(&wood) * 1e3
+    );
+}
+
 /// A soft column (0.2 × 1 × 0.2 m, E = 1 MPa, ρ = 1000) standing on the floor, its base
 /// nodes pinned: top sag after settling against ρ g h² / (2E).
 fn column(integrator: Integrator) {
@@ -278,23 +339,32 @@ fn jelly_sweep(integrator: Integrator, speed: f64) {
 
 /// A jelly ball (r 0.5 m, 8 cells) thrown down at 8 m/s with volume preservation: the
 /// largest deviation of the lattice volume from rest over 48 frames.
-fn jelly_ball(integrator: Integrator) {
+fn jelly_ball(integrator: Integrator, preserve: bool) {
     let (p, t) = uv_sphere([0.0, 0.52, 0.0], 0.5, 16, 32);
     let b = body((p, t), 8);
     let jelly = Material::preset("jelly").expect("preset");
     let mut w = world(&b, &jelly, integrator, Vector3::new(0.0, -8.0, 0.0), true);
     let h = springbake_core::solver::BodyHandle(0);
-    w.preserve_volume(h, 1.0).expect("volume");
+    if preserve {
+        w.preserve_volume(h, 1.0).expect("volume");
+    }
     let v0 = w.body_volume(h);
     let (mut worst, mut inverted) = (0.0f64, 0);
     let t0 = Instant::now();
     for f in 1..=48 {
         let d = frame(&mut w, f);
         worst = worst.max((w.body_volume(h) / v0 - 1.0).abs());
+        if std::env::var("VOLTRACE").is_ok() {
+            println!(
+                "f {f} vol {:.4} substeps {}",
+                w.body_volume(h) / v0,
+                d.substeps
+            );
+        }
         inverted = inverted.max(d.inverted_cells);
     }
     println!(
-        "jelly ball at 8 m/s, preserve_volume: lattice volume within {:.2} % of rest, inverted max {inverted}; {:.1} ms/frame",
+        "jelly ball at 8 m/s, preserve_volume {preserve}: lattice volume within {:.2} % of rest, inverted max {inverted}; {:.1} ms/frame",
         worst * 100.0,
         t0.elapsed().as_secs_f64() * 1e3 / 48.0
     );

@@ -146,12 +146,14 @@ pub fn rebound_ball() -> Mesh {
 }
 
 /// What the dropped ball did: the highest its bottom got after the first bounce, the most
-/// cells inverted and substeps in any frame.
+/// cells inverted and substeps in any frame, and the furthest its lattice volume got from
+/// rest (a fraction).
 #[allow(dead_code)]
 pub struct Rebound {
     pub peak: f64,
     pub inverted: usize,
     pub substeps: u32,
+    pub volume_change: f64,
 }
 
 /// Steps `w` (holding [`rebound_ball`] over a floor) `frames` frames at 24 fps. A bounce counts
@@ -167,10 +169,13 @@ pub fn rebound(w: &mut World, frames: usize) -> Rebound {
             .fold(f64::INFINITY, f64::min)
     };
     let offset = lowest(w) - 1.0;
+    let ball = springbake_core::solver::BodyHandle(0);
+    let rest_volume = w.body_volume(ball);
     let mut out = Rebound {
         peak: 0.0,
         inverted: 0,
         substeps: 0,
+        volume_change: 0.0,
     };
     let mut touched = false;
     for f in 1..=frames {
@@ -179,6 +184,9 @@ pub fn rebound(w: &mut World, frames: usize) -> Rebound {
             .expect("a dropped ball stays finite");
         out.inverted = out.inverted.max(d.inverted_cells);
         out.substeps = out.substeps.max(d.substeps);
+        out.volume_change = out
+            .volume_change
+            .max((w.body_volume(ball) / rest_volume - 1.0).abs());
         let bottom = lowest(w) - offset;
         let rising = w.nodes.velocity.iter().map(|v| v.y).sum::<f64>() > 0.0;
         touched |= bottom < 0.02 || rising;

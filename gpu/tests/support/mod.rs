@@ -14,6 +14,18 @@ use springbake_core::solver::{Integrator, ManipulatorTrack, Plane, World, WorldS
 /// floor at y = 0) as the product sets up a mesh: `cells` along its side, display-surface
 /// contact sampled at half a cell, friction 0.4.
 pub fn box_world(size: f64, tilt: Rotation3<f64>, height: f64, cells: u32, preset: &str) -> World {
+    let material = Material::preset(preset).unwrap();
+    box_world_of(size, tilt, height, cells, &material)
+}
+
+/// [`box_world`] in any material.
+pub fn box_world_of(
+    size: f64,
+    tilt: Rotation3<f64>,
+    height: f64,
+    cells: u32,
+    material: &Material,
+) -> World {
     let half = 0.5 * size;
     let (mut points, triangles) = box_mesh([-half; 3], [half; 3]);
     for p in &mut points {
@@ -33,17 +45,16 @@ pub fn box_world(size: f64, tilt: Rotation3<f64>, height: f64, cells: u32, prese
         },
     )
     .unwrap();
-    let material = Material::preset(preset).unwrap();
     let mut w = World::new(WorldSettings {
         planes: vec![Plane {
             normal: Vector3::y(),
             offset: 0.0,
         }],
-        layer: WorldSettings::default_layer(lattice.cell_size, &material, 0.4),
+        layer: WorldSettings::default_layer(lattice.cell_size, material, 0.4),
         integrator: Integrator::Xpbd,
         ..WorldSettings::default()
     });
-    let h = w.add_lattice_body("box", &lattice, &material, Vector3::zeros());
+    let h = w.add_lattice_body("box", &lattice, material, Vector3::zeros());
     let (samples, areas) = surface_samples(&points, &triangles, 0.5 * lattice.cell_size);
     w.add_contact_surface(h, &lattice, &samples, &areas);
     w
