@@ -1,8 +1,8 @@
 //! Bodies far too stiff for their lattice to bend at the XPBD solver's substeps (wood, steel)
 //! are held to their best-fit rigid motion (`solver::xpbd::held`): a wooden cantilever stays
 //! straight where the elastic cells let it hang, a wooden plank pinned on one edge swings about
-//! it as a rigid pendulum, a spinning steel box keeps its spin, and a rubber body of the same
-//! shape is left elastic.
+//! it as a rigid pendulum, a spinning steel box keeps its spin, a rubber body of the same
+//! shape is left elastic, and any thread count gives the same bits.
 #![allow(clippy::unwrap_used)]
 
 mod support;
@@ -107,4 +107,35 @@ fn a_spinning_steel_box_keeps_its_spin_and_shape() {
     let last = x.len() - 1;
     let stretch = (x[0] - x[last]).norm() - (rest[0] - rest[last]).norm();
     assert!(stretch.abs() < 1e-9, "its diagonal changed by {stretch} m");
+}
+
+/// A tilted steel box (held) landing on its corner, stepped in pools of 1, 2 and 8 threads:
+/// the same bits.
+#[test]
+fn a_held_body_gives_the_same_bits_with_one_two_and_eight_threads() {
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (mut points, triangles) = box_mesh([-0.2, -0.2, -0.2], [0.2, 0.2, 0.2]);
+            let tilt = springbake_core::nalgebra::Rotation3::from_euler_angles(0.5, 0.0, 0.4);
+            for p in &mut points {
+                *p = tilt * *p + Vector3::new(0.0, 0.45, 0.0);
+            }
+            let mut w = world(&mesh((points, triangles), 12), "steel", true);
+            for f in 1..=12 {
+                w.advance_frame(FRAME, f, &|| false).unwrap();
+            }
+            w.nodes.position.clone()
+        })
+    };
+    let one = run(1);
+    assert!(
+        one.iter().all(|p| p.y > -0.01),
+        "the box is held off the floor"
+    );
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(8));
 }
