@@ -748,7 +748,8 @@ fn a_body_that_starts_inside_a_collider_is_named_before_the_bake() {
 
 /// A wooden plank pinned at one end is held rigid, and the CLI says so before the bake; with
 /// `[solver] stiff_bodies = "elastic"` it is solved as cells (no note) and sags far more than
-/// wood can; a value that is neither names the key (exit 2).
+/// wood can; a value that is neither names the key (exit 2). A plank too stiff for the
+/// substeps to resolve but not held is named with the substeps it asks for.
 #[test]
 fn a_pinned_wooden_plank_is_held_rigid_and_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -780,6 +781,7 @@ fn a_pinned_wooden_plank_is_held_rigid_and_named() {
     };
     let err = support::bake_scene(dir.path(), "held.toml", &scene(""));
     assert!(err.contains("body \"plank\" is held rigid"), "{err}");
+    assert!(!err.contains("stiffer than the solver resolves"), "{err}");
     let held = lowest(dir.path());
     assert!(
         (held - 1.0).abs() < 1e-3,
@@ -790,6 +792,19 @@ fn a_pinned_wooden_plank_is_held_rigid_and_named() {
     assert!(!err.contains("held rigid"), "{err}");
     let sagged = lowest(dir.path());
     assert!(sagged < 0.95, "elastic plank's lowest point {sagged} m");
+    // A plank of a made-up E = 10 MPa (wave speed 100 m/s: not held) asks for more substeps
+    // than the automatic count gives, and is named with what it would take.
+    let plastic = scene("").replace(
+        "material = \"wood\"",
+        "material = { young = 1e7, density = 1000, poisson = 0.3, damping = 0.5 }",
+    );
+    let err = support::bake_scene(dir.path(), "plastic.toml", &plastic);
+    assert!(!err.contains("held rigid"), "{err}");
+    assert!(
+        err.contains("body \"plank\" is stiffer than the solver resolves")
+            && err.contains("`[solver] substeps = 126`"),
+        "{err}"
+    );
     let bogus = "[solver]\nstiff_bodies = \"stiff\"\n";
     std::fs::write(dir.path().join("bogus.toml"), scene(bogus)).unwrap();
     let o = support::springbake_in(dir.path(), &["bake", "bogus.toml"]);

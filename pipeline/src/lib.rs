@@ -618,6 +618,9 @@ pub fn bake(
         for text in budget::held_bodies_notes(&mut prepared) {
             note(&text);
         }
+        for text in budget::under_resolved_notes(&prepared, loaded.scene.output.fps) {
+            note(&text);
+        }
         for text in budget::inside_collider_notes(&prepared) {
             note(&text);
         }

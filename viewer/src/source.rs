@@ -48,6 +48,10 @@ impl Simulation {
         for text in springbake_pipeline::budget::held_bodies_notes(&mut prepared) {
             eprintln!("springbake: note: {text}");
         }
+        let fps = loaded.scene.output.fps;
+        for text in springbake_pipeline::budget::under_resolved_notes(&prepared, fps) {
+            eprintln!("springbake: note: {text}");
+        }
         for text in springbake_pipeline::budget::inside_collider_notes(&prepared) {
             eprintln!("springbake: note: {text}");
         }

@@ -26,6 +26,10 @@
 //! the body, so a body pinned at one end stays put and one pinned on an axis turns about it.
 //! Bodies in joints are left elastic (their shared nodes are another body's too).
 //! `World::hold_stiff_bodies` (`[solver] stiff_bodies = "elastic"`) turns this off.
+//!
+//! Bodies stiffer than the substeps resolve but not held (wave speeds of about 40–1000 m/s:
+//! hard rubber, stiff plastics; or rubber on a fine lattice) still bend softer than their
+//! material; [`World::under_resolved_bodies`] names them so the CLI can say so.
 
 use super::V3;
 use crate::solver::World;
@@ -181,16 +185,71 @@ fn held_wave_speed(world: &World, b: usize) -> Option<f64> {
     if speed.is_nan() || speed < HELD_WAVE_SPEED {
         return None;
     }
+    let (length, thickness) = extents(world, range);
+    let gyration = thickness / 12f64.sqrt();
+    let first_bending = 3.52 * gyration * speed / (length * length);
+    let sag = world.settings.gravity.norm() / (first_bending * first_bending);
+    (length > 0.0 && sag <= HIDDEN_SAG * length).then_some(speed)
+}
+
+/// The longest and the thinnest side of the rest box of the nodes `range`, m.
+fn extents(world: &World, range: Range<usize>) -> (f64, f64) {
     let (mut lo, mut hi) = (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY));
     for i in range {
         lo = lo.inf(&world.rest[i]);
         hi = hi.sup(&world.rest[i]);
     }
-    let (length, thickness) = ((hi - lo).max(), (hi - lo).min());
-    let gyration = thickness / 12f64.sqrt();
-    let first_bending = 3.52 * gyration * speed / (length * length);
-    let sag = world.settings.gravity.norm() / (first_bending * first_bending);
-    (length > 0.0 && sag <= HIDDEN_SAG * length).then_some(speed)
+    ((hi - lo).max(), (hi - lo).min())
+}
+
+/// How many times the stiffness cap's substeps a body's material must ask for before
+/// [`World::under_resolved_bodies`] names it. Measured on an E = 10 MPa cantilever: asking 4 ×
+/// the cap it bent 2.5 × as far as at 300 substeps, 8 × 4.9 ×, 17 × 5.6 ×; an E = 100 MPa one
+/// asking 26 × bent 30 ×.
+pub const UNDER_RESOLVED_FACTOR: f64 = 4.0;
+/// Longest over thinnest side from which a body counts as slender, where that softening shows
+/// (the beams above are 10; a compact body's squash is mostly compression, which the sweep
+/// resolves within about 10 % at a substep a wave crossing: the column check).
+pub const SLENDER: f64 = 4.0;
+
+impl World {
+    /// The XPBD bodies whose material is stiffer than the automatic substeps resolve at their
+    /// cell size, with the substeps a frame of `frame_dt` seconds would need (three per
+    /// elastic wave crossing of a cell): at least [`UNDER_RESOLVED_FACTOR`] times the
+    /// stiffness cap, for a body at least [`SLENDER`]. Such a body bends far softer than its
+    /// material. Held bodies, rigid and particle kinds, and worlds at fixed substeps are not
+    /// named.
+    pub fn under_resolved_bodies(&self, frame_dt: f64) -> Vec<(String, u32)> {
+        use super::{MAX_STIFFNESS_SUBSTEP_RATE, SUBSTEPS_PER_WAVE_CROSSING};
+        if self.settings.integrator != crate::solver::Integrator::Xpbd
+            || self.settings.fixed_substeps.is_some()
+        {
+            return Vec::new();
+        }
+        let cap = (MAX_STIFFNESS_SUBSTEP_RATE * frame_dt).ceil();
+        (0..self.bodies.len())
+            .filter_map(|b| {
+                let body = &self.bodies[b];
+                let material = body.material.as_ref()?;
+                let rigid = self.rigid.iter().any(|r| r.body == b);
+                let held = self.hold_stiff_bodies && held_wave_speed(self, b).is_some();
+                let (length, thickness) = extents(self, body.nodes.clone());
+                if rigid || held || length.is_nan() || length < SLENDER * thickness {
+                    return None;
+                }
+                let cell = (body.cells.iter())
+                    .map(|c| (self.rest[c[1] as usize] - self.rest[c[0] as usize]).norm())
+                    .filter(|&h| h > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                let stiffest = body.cell_stiffness.iter().copied().fold(1.0f64, f64::max)
+                    * body.axis_stiffness.iter().copied().fold(1.0f64, f64::max);
+                let speed = (material.young_pa * stiffest / material.density_kg_m3).sqrt();
+                let asked = (SUBSTEPS_PER_WAVE_CROSSING * frame_dt * speed / cell).ceil();
+                (asked.is_finite() && asked >= UNDER_RESOLVED_FACTOR * cap)
+                    .then(|| (body.name.clone(), asked.min(u32::MAX as f64) as u32))
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]

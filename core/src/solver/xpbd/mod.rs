@@ -70,7 +70,7 @@ pub const MAX_STIFFNESS_SUBSTEP_RATE: f64 = 720.0;
 pub const MAX_SPEED_SUBSTEP_RATE: f64 = 1440.0;
 /// Substeps per elastic wave crossing of the shortest cell: the sweep's stiffness is within
 /// 10 % of the material's at 2 and 5 % at 4 (a column under its own weight).
-const SUBSTEPS_PER_WAVE_CROSSING: f64 = 3.0;
+pub(crate) const SUBSTEPS_PER_WAVE_CROSSING: f64 = 3.0;
 /// Most of the shortest cell a node may travel in one substep when a surface is near: an
 /// impact stops the touching layer within a substep and the sweep carries that to the next
 /// cells, so the layer must not be crushed first (a rubber ball dropped 1 m folds cells at
