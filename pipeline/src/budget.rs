@@ -242,7 +242,7 @@ pub fn held_bodies_notes(prepared: &mut Prepared) -> Vec<String> {
         .map(|body| {
             format!(
                 "body \"{body}\" is held rigid: its material is too stiff for a deformation \
-                 to show at its size, and far too stiff for its lattice to bend right at the \
+                 to show at its size, and far too stiff for its cells to bend right at the \
                  solver's substeps (`[solver] stiff_bodies = \"elastic\"` solves it as cells, \
                  far softer than its material)"
             )
