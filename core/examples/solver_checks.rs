@@ -233,8 +233,9 @@ fn spin(integrator: Integrator) {
 /// automatic count a finer lattice bends more: the sweep resolves less of the stiffness); wood
 /// held rigid and solved elastic.
 fn cantilever(integrator: Integrator) {
-    let (p, t) = box_mesh([0.0, 0.5, 0.0], [1.0, 0.6, 0.1]);
-    let beam = |cells: u32| body((p.clone(), t.clone()), cells);
+    let beam_of =
+        |length: f64, cells: u32| body(box_mesh([0.0, 0.5, 0.0], [length, 0.6, 0.1]), cells);
+    let beam = |cells: u32| beam_of(1.0, cells);
     let b = beam(20);
     let sag_of = |b: &Body, m: &Material, hold: bool, substeps: Option<u32>| {
         let mut w = world(b, m, integrator, Vector3::zeros(), false);
@@ -245,8 +246,9 @@ fn cantilever(integrator: Integrator) {
         let start = w.nodes.position.clone();
         let root: Vec<usize> = (0..start.len()).filter(|&i| start[i].x < 1e-9).collect();
         w.pin(&root).expect("pins");
+        let end = start.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max);
         let tip: Vec<usize> = (0..start.len())
-            .filter(|&i| start[i].x > 1.0 - 1e-9)
+            .filter(|&i| start[i].x > end - 1e-9)
             .collect();
         for f in 1..=96 {
             frame(&mut w, f);
@@ -258,10 +260,11 @@ fn cantilever(integrator: Integrator) {
         sum / tip.len() as f64
     };
     let sag = |m: &Material, hold: bool| sag_of(&b, m, hold, None);
-    let theory = |m: &Material| {
+    let theory_of = |m: &Material, length: f64| {
         let load = m.density_kg_m3 * 9.81 * 0.01;
-        load / (8.0 * m.young_pa * 0.1 * 0.1f64.powi(3) / 12.0)
+        load * length.powi(4) / (8.0 * m.young_pa * 0.1 * 0.1f64.powi(3) / 12.0)
     };
+    let theory = |m: &Material| theory_of(m, 1.0);
     let mut line = String::new();
     for nu in [0.3, 0.47, 0.4995] {
         let m = Material::new("beam", 1.0e8, nu, 1000.0, 0.5).expect("material");
@@ -287,6 +290,23 @@ fn cantilever(integrator: Integrator) {
     println!(
         "cantilever E 10 MPa by cells:{line} Euler-Bernoulli {:.0} mm",
         theory(&stiff) * 1e3
+    );
+    // Rubber's E, ν and ρ (damping 0.5, so it settles in the 4 s), a 0.5 m beam: small strain.
+    let rubber = Material::new("rubber", 1.5e6, 0.47, 1100.0, 0.5).expect("material");
+    let mut line = String::new();
+    for cells in [5, 10, 20] {
+        let b = beam_of(0.5, cells);
+        let auto = sag_of(&b, &rubber, true, None);
+        let many = sag_of(&b, &rubber, true, Some(300));
+        line += &format!(
+            " {cells} cells {:.0} mm (300 substeps {:.0});",
+            auto * 1e3,
+            many * 1e3
+        );
+    }
+    println!(
+        "cantilever rubber 0.5 m by cells:{line} Euler-Bernoulli {:.0} mm",
+        theory_of(&rubber, 0.5) * 1e3
     );
     let wood = Material::preset("wood").expect("preset");
     println!(
