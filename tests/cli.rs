@@ -805,6 +805,14 @@ fn a_pinned_wooden_plank_is_held_rigid_and_named() {
             && err.contains("`[solver] substeps = 126`"),
         "{err}"
     );
+    // A hard plastic (E 1.5 GPa, 1100 kg/m³: 1170 m/s) is held too, though its 5 cm plank
+    // fills half of each 10 cm cell (mass and stiffness both halved: the same wave speed).
+    let hard = scene("").replace(
+        "material = \"wood\"",
+        "material = { young = 1.5e9, density = 1100, poisson = 0.35, damping = 0.1 }",
+    );
+    let err = support::bake_scene(dir.path(), "hard.toml", &hard);
+    assert!(err.contains("body \"plank\" is held rigid"), "{err}");
     let bogus = "[solver]\nstiff_bodies = \"stiff\"\n";
     std::fs::write(dir.path().join("bogus.toml"), scene(bogus)).unwrap();
     let o = support::springbake_in(dir.path(), &["bake", "bogus.toml"]);

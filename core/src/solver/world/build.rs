@@ -87,6 +87,7 @@ impl World {
         for (scale, &f) in info.cell_stiffness.iter_mut().zip(fill) {
             *scale *= f;
         }
+        info.cell_fill = fill.to_vec();
         let n = &mut self.nodes;
         for (i, &(sum, count)) in share.iter().enumerate() {
             if count > 0 {
@@ -135,6 +136,7 @@ impl World {
             grid: None,
             material: None,
             cell_stiffness: Vec::new(),
+            cell_fill: Vec::new(),
             axis_stiffness: [1.0; 3],
         });
         self.invalidate_prepared();

@@ -133,8 +133,12 @@ pub struct BodyInfo {
     /// The body's material (lattice and cage bodies): the XPBD solver's cells take their
     /// Young's modulus and Poisson ratio from it ([`super::xpbd`]).
     pub material: Option<Material>,
-    /// Per cell: stiffness factor set by regions (empty: 1 everywhere).
+    /// Per cell: stiffness factor set by regions and by how much of the cell the mesh fills
+    /// (empty: 1 everywhere).
     pub cell_stiffness: Vec<f64>,
+    /// Per cell: how much of it the mesh fills ([`World::set_cell_fill`]; empty: whole
+    /// cells). Its mass and stiffness both take the factor, so its wave speed does not.
+    pub cell_fill: Vec<f64>,
     /// Stiffness factor per axis (anisotropy, [`World::scale_stiffness_per_axis`]): the XPBD
     /// cells weight their strain components by it.
     pub axis_stiffness: [f64; 3],

@@ -109,11 +109,14 @@ impl Held {
         for body in &self.bodies {
             let range = body.nodes.clone();
             self.weights.clear();
+            // A massless node (none in a lattice; kept safe) weighs nothing and follows.
             self.weights.extend(range.clone().map(|i| {
                 if inv_mass[i] > 0.0 {
                     mass[i]
-                } else {
+                } else if mass[i] > 0.0 {
                     PINNED_WEIGHT * body.mass
+                } else {
+                    0.0
                 }
             }));
             let total: f64 = self.weights.iter().sum();
@@ -136,7 +139,7 @@ impl Held {
                 continue;
             };
             for i in range {
-                if inv_mass[i] > 0.0 {
+                if inv_mass[i] > 0.0 || mass[i] <= 0.0 {
                     position[i] = c + rotation * (rest[i] - c0);
                 }
             }
@@ -179,7 +182,7 @@ fn held_wave_speed(world: &World, b: usize) -> Option<f64> {
     {
         return None;
     }
-    let softest = body.cell_stiffness.iter().copied().fold(1.0f64, f64::min)
+    let softest = region_scales(body).fold(1.0f64, f64::min)
         * body.axis_stiffness.iter().copied().fold(1.0f64, f64::min);
     let speed = (material.young_pa * softest / material.density_kg_m3).sqrt();
     if speed.is_nan() || speed < HELD_WAVE_SPEED {
@@ -190,6 +193,13 @@ fn held_wave_speed(world: &World, b: usize) -> Option<f64> {
     let first_bending = 3.52 * gyration * speed / (length * length);
     let sag = world.settings.gravity.norm() / (first_bending * first_bending);
     (length > 0.0 && sag <= HIDDEN_SAG * length).then_some(speed)
+}
+
+/// Per cell of `body`, its stiffness factor without the share of the cell its mesh fills
+/// (which scales the cell's mass too, leaving its wave speed as it is): the regions' factors.
+fn region_scales(body: &crate::solver::BodyInfo) -> impl Iterator<Item = f64> + '_ {
+    let fill = |c: usize| body.cell_fill.get(c).copied().filter(|&f| f > 0.0);
+    (body.cell_stiffness.iter().enumerate()).map(move |(c, &s)| fill(c).map_or(s, |f| s / f))
 }
 
 /// The longest and the thinnest side of the rest box of the nodes `range`, m.
@@ -241,7 +251,7 @@ impl World {
                     .map(|c| (self.rest[c[1] as usize] - self.rest[c[0] as usize]).norm())
                     .filter(|&h| h > 0.0)
                     .fold(f64::INFINITY, f64::min);
-                let stiffest = body.cell_stiffness.iter().copied().fold(1.0f64, f64::max)
+                let stiffest = region_scales(body).fold(1.0f64, f64::max)
                     * body.axis_stiffness.iter().copied().fold(1.0f64, f64::max);
                 let speed = (material.young_pa * stiffest / material.density_kg_m3).sqrt();
                 let asked = (SUBSTEPS_PER_WAVE_CROSSING * frame_dt * speed / cell).ceil();
