@@ -2,11 +2,12 @@
 //! rebound per material preset, fidelity against the explicit solver (centre of mass over a
 //! drop and two bounces, resting height), spin kept by a free cube, a column's sag under its
 //! own weight, the jelly block swept by the capsule (inverted cells, time per frame), the
-//! jelly ball dropped at 8 m/s with volume preservation, and a 1 cm cube. Prints one line per
+//! jelly ball dropped at 8 m/s with volume preservation, a 1 cm cube, and rubber cubes of
+//! 1 cm to 1 m dropped at two frame rates. Prints one line per
 //! check; nothing here is asserted (the tests in `core/tests/xpbd.rs` are).
 //!
 //! `cargo run --release -p springbake-core --example solver_checks [-- [xpbd|euler|newmark]
-//! [--substeps N] [rebound fidelity spin column sweep ball tiny live]]` (no check named: all)
+//! [--substeps N] [rebound fidelity spin column sweep ball tiny scale live]]` (no check named: all)
 
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
@@ -107,6 +108,7 @@ fn main() {
                     "sweep",
                     "ball",
                     "tiny",
+                    "scale",
                 ]
                 .contains(&a.as_str())
             })
@@ -147,6 +149,13 @@ fn main() {
     }
     if wanted("tiny") {
         tiny_cube(integrator);
+    }
+    if wanted("scale") {
+        for edge in [0.01, 0.1, 1.0] {
+            scaled_drop(integrator, edge, edge);
+        }
+        scaled_drop(integrator, 0.1, 1.0);
+        scaled_drop(integrator, 0.2, 1.0);
     }
     if wanted("live") {
         live(integrator);
@@ -429,4 +438,48 @@ fn tiny_cube(integrator: Integrator) {
         t0.elapsed().as_secs_f64(),
         lowest(&w)
     );
+}
+
+/// A rubber cube of `edge` metres (10 cells) dropped from `drop` above the floor, baked at
+/// 24 and at 240 frames a second for 2 s: its least height against its rest height (the
+/// impact's squash, as the frames sample it) and the highest its centre of mass gets after
+/// the first bounce, over its rest height, as a share of the drop.
+fn scaled_drop(integrator: Integrator, edge: f64, drop: f64) {
+    for fps in [24.0, 240.0] {
+        let (p, t) = box_mesh([0.0, drop, 0.0], [edge, drop + edge, edge]);
+        let b = body((p, t), 10);
+        let rubber = Material::preset("rubber").expect("preset");
+        let mut w = world(&b, &rubber, integrator, Vector3::zeros(), true);
+        let height = |w: &World| {
+            let ys = w.nodes.position.iter().map(|p| p.y);
+            ys.clone().fold(f64::MIN, f64::max) - ys.fold(f64::MAX, f64::min)
+        };
+        let t0 = Instant::now();
+        let (mut least, mut substeps) = (f64::INFINITY, 0.0_f64);
+        let (mut rising, mut bounced, mut peak) = (false, false, 0.0_f64);
+        let mut last = centre(&w).y;
+        for f in 1..=(2.0 * fps) as usize {
+            let d = w.advance_frame(1.0 / fps, f, &|| false).expect("finite");
+            substeps = substeps.max(f64::from(d.substeps) * fps / FPS);
+            least = least.min(height(&w));
+            let y = centre(&w).y;
+            if !bounced && y > last && last < 0.75 * edge {
+                rising = true;
+            }
+            if rising && y < last {
+                bounced = true;
+                rising = false;
+            }
+            if rising {
+                peak = peak.max(y - 0.5 * edge);
+            }
+            last = y;
+        }
+        println!(
+            "scale: {edge} m rubber cube dropped {drop} m at {fps} frames/s: least height {:.1} % of rest, rebound {:.1} % of the drop, {substeps:.0} substeps a 1/24 s frame at most, {:.2} s",
+            100.0 * least / edge,
+            100.0 * peak / drop,
+            t0.elapsed().as_secs_f64()
+        );
+    }
 }

@@ -32,6 +32,7 @@ mod contact;
 mod crowding;
 mod glue;
 mod held;
+mod impacts;
 mod lane_io;
 mod lanes;
 mod restitution;
@@ -51,10 +52,10 @@ use super::{World, PAR_CHUNK};
 pub(crate) use cells::CellSet;
 use cells::{CellInput, PointGroups};
 use glue::Glue;
+use impacts::{impact_shares, speed_rate, ImpactHold};
 use nalgebra::Vector3;
 use restitution::Restitution;
 use rigid_contacts::{point_tasks, rigid_contacts, PointSums};
-use std::ops::Range;
 use std::sync::Arc;
 
 type V3 = Vector3<f64>;
@@ -82,7 +83,7 @@ const TRAVEL_PER_SUBSTEP: f64 = 0.1;
 /// substep, none at 0.35).
 const BODY_TRAVEL_PER_SUBSTEP: f64 = 0.25;
 /// Most substeps per second chosen for a body about to hit a floor, wall or collider (500 a
-/// frame at 24; see [`impact_rate`]): [`MAX_SPEED_SUBSTEP_RATE`] does not hold it, for a
+/// frame at 24; see [`impacts`]): [`MAX_SPEED_SUBSTEP_RATE`] does not hold it, for a
 /// layer pressed by more than [`TRAVEL_PER_SUBSTEP`] of a cell a substep folds (a 1 m rubber
 /// cube dropped 1 m on 64³ nodes held at 60 substeps a frame inverted a cell, 0.19 of a cell
 /// a substep; 128³ at 0.39 inverted 11 000; given 108 and 84 in its two impact frames, 64³
@@ -173,6 +174,8 @@ pub(crate) struct Model {
     crowding: Crowding,
     /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
     held: held::Held,
+    /// Each body's impact and the substeps it keeps through it (`impacts`).
+    impacts: ImpactHold,
 }
 
 /// A display-surface point as the contact pass reads it (`World::surface`'s records).
@@ -355,6 +358,7 @@ impl Model {
             glue: Glue::default(),
             crowding: Crowding::default(),
             held,
+            impacts: ImpactHold::default(),
         }
     }
 
@@ -488,8 +492,8 @@ fn kept_nodes(world: &World) -> Vec<u32> {
 /// cell (a capsule [`CAPSULE_TRAVEL_PER_SUBSTEP`]) in one, at most
 /// [`MAX_SPEED_SUBSTEP_RATE`]; of a body the restitution moves as a whole at an impact, the
 /// share it moves is bounded by the body's thickness instead ([`speed_rate`]). A body about to
-/// hit a floor, wall or collider keeps the travel bound for its approach up to
-/// [`MAX_IMPACT_SUBSTEP_RATE`] ([`impact_rate`]). Each count is rounded up to a whole substep.
+/// hit a floor, wall or collider keeps the travel bound for its approach, through the impact's release, up to
+/// [`MAX_IMPACT_SUBSTEP_RATE`] ([`impacts`]). Each count is rounded up to a whole substep.
 pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice {
     if world.xpbd.is_none() {
         world.xpbd = Some(Model::build(world));
@@ -532,7 +536,15 @@ pub(crate) fn choose_substeps(world: &mut World, frame_dt: f64) -> SubstepChoice
             n = by_speed.min(count(MAX_SPEED_SUBSTEP_RATE).max(n));
             limited_by = if by_speed > n { "speed cap" } else { "speed" };
         }
-        let impact = impact_rate(world, frame_dt, h, &shares);
+        let mut impacts = world
+            .xpbd
+            .as_mut()
+            .map(|m| std::mem::take(&mut m.impacts))
+            .unwrap_or_default();
+        let impact = impacts.rate(world, frame_dt, h, &shares);
+        if let Some(model) = world.xpbd.as_mut() {
+            model.impacts = impacts;
+        }
         let by_impact = (impact * frame_dt).ceil();
         if by_impact > n {
             n = by_impact.min(count(MAX_IMPACT_SUBSTEP_RATE));
@@ -607,122 +619,6 @@ fn crowded_substeps(world: &mut World, n: f64, cap: f64) -> Option<f64> {
     let level = model.crowding.update(time, ratio, max_level);
     let crowded = (n * f64::from(1u32 << level)).min(cap);
     (crowded > n).then_some(crowded)
-}
-
-/// Substeps per second the travel bound asks for a body about to hit a floor, a wall or a
-/// static collider: its centre's speed towards it, when the body can reach it within the
-/// frame (the impact its cells must stop; [`speed_rate`] for the share). The node speeds of
-/// a body sliding on a surface, or of a fold snapping, are not an impact and stay capped.
-fn impact_rate(world: &World, frame_dt: f64, h: f64, shares: &[ImpactShare]) -> f64 {
-    let (x, v, mass) = (
-        &world.nodes.position,
-        &world.nodes.velocity,
-        &world.nodes.mass,
-    );
-    let colliders = &world.body_contact.colliders;
-    let mut rate = 0.0f64;
-    for body in world.bodies.iter().filter(|b| !b.nodes.is_empty()) {
-        let nodes = || body.nodes.clone();
-        let (m, momentum) = nodes().fold((0.0, V3::zeros()), |(m, p), i| {
-            (m + mass[i], p + v[i] * mass[i])
-        });
-        if m <= 0.0 {
-            continue;
-        }
-        let centre_v = momentum / m;
-        let reaches = |towards: f64, gap: f64| towards > 0.0 && gap <= towards * frame_dt + h;
-        let mut closing = 0.0f64;
-        // A pass for each plane the body moves towards (usually the floor, while it falls).
-        for p in &world.settings.planes {
-            let towards = -p.normal.dot(&centre_v);
-            if towards > closing {
-                let gap = nodes().fold(f64::INFINITY, |g, i| g.min(p.normal.dot(&x[i]) - p.offset));
-                if reaches(towards, gap) {
-                    closing = towards;
-                }
-            }
-        }
-        if !colliders.is_empty() {
-            let (lo, hi) = nodes().fold(
-                (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY)),
-                |(lo, hi), i| (lo.inf(&x[i]), hi.sup(&x[i])),
-            );
-            for c in colliders {
-                let (towards, gap) = box_approach((lo, hi), (c.lo, c.hi), centre_v);
-                if reaches(towards, gap) {
-                    closing = closing.max(towards);
-                }
-            }
-        }
-        if closing > 0.0 {
-            rate = rate.max(speed_rate(body.nodes.start, closing, h, shares));
-        }
-    }
-    rate
-}
-
-/// How fast a body with bounding box `a` moving at `v` closes on the fixed box `b`, and the
-/// gap between the boxes: along the axis that parts them most (of overlapping boxes, the axis
-/// they overlap least along), towards `b`.
-fn box_approach(a: (V3, V3), b: (V3, V3), v: V3) -> (f64, f64) {
-    let mut best = (f64::NEG_INFINITY, 0.0, 0usize);
-    for k in 0..3 {
-        // Positive: apart by that much along k; negative: overlapping by that much.
-        let (above, below) = (a.0[k] - b.1[k], b.0[k] - a.1[k]);
-        let (apart, side) = if above >= below {
-            (above, 1.0)
-        } else {
-            (below, -1.0)
-        };
-        if apart > best.0 {
-            best = (apart, side, k);
-        }
-    }
-    let (apart, side, k) = best;
-    (-side * v[k], apart.max(0.0))
-}
-
-/// A body the restitution takes a share of the impacts of (`xpbd::restitution`): its node
-/// range, that share at the substep, and its thickness, m.
-struct ImpactShare {
-    nodes: Range<usize>,
-    share: f64,
-    thickness: f64,
-}
-
-/// The bodies the restitution takes a share of the impacts of at substeps of `dt`, when
-/// planes and static colliders are all a body can touch (no deformable partner, no capsule).
-fn impact_shares(world: &World, dt: f64) -> Vec<ImpactShare> {
-    let only_static = !world.body_contact.deformable_pairs()
-        && world.manipulators.is_empty()
-        && world.live_capsules.is_empty();
-    match world.xpbd.as_ref() {
-        Some(model) if only_static => model
-            .restitution
-            .shares_at(dt)
-            .map(|(b, share, thickness)| ImpactShare {
-                nodes: world.bodies[b].nodes.clone(),
-                share,
-                thickness,
-            })
-            .collect(),
-        _ => Vec::new(),
-    }
-}
-
-/// Substeps per second that node `i`'s speed `v` asks for near a surface: its cells must
-/// stop `(1 − share) v` of an impact within a tenth of the shortest cell `h` a substep, and
-/// the restitution moves the body as a whole by the other `share v`, within
-/// [`BODY_TRAVEL_PER_SUBSTEP`] of its thickness a substep (a body the restitution moves
-/// wholly, a 1 cm cube or a steel ball, needs no more substeps as it shrinks).
-fn speed_rate(i: usize, v: f64, h: f64, shares: &[ImpactShare]) -> f64 {
-    let cells = v / (TRAVEL_PER_SUBSTEP * h);
-    match shares.iter().find(|s| s.nodes.contains(&i)) {
-        Some(s) if s.thickness > 0.0 => {
-            (1.0 - s.share) * cells + s.share * v / (BODY_TRAVEL_PER_SUBSTEP * s.thickness)
-        }
-        _ => cells,
-    }
 }
 
 /// Small-step XPBD behind [`Integrate`] (module docs).
