@@ -714,16 +714,7 @@ fn a_body_that_starts_inside_a_collider_is_named_before_the_bake() {
     // the same cube above the box (no note).
     let dir = tempfile::tempdir().unwrap();
     let obj = |name: &str, lo: [f64; 3], hi: [f64; 3]| {
-        let (points, triangles) = springbake_core::shapes::box_mesh(lo, hi);
-        let mut text = format!("o {name}\n");
-        for p in &points {
-            text += &format!("v {} {} {}\n", p.x, p.y, p.z);
-        }
-        for t in triangles {
-            let [a, b, c] = t.map(|k| k + 1);
-            text += &format!("f {a} {b} {c}\n");
-        }
-        text
+        support::obj_text(name, springbake_core::shapes::box_mesh(lo, hi))
     };
     std::fs::write(
         dir.path().join("crate.obj"),
@@ -753,16 +744,12 @@ fn a_body_that_starts_inside_a_collider_is_named_before_the_bake() {
 #[test]
 fn a_pinned_wooden_plank_is_held_rigid_and_named() {
     let dir = tempfile::tempdir().unwrap();
-    let (points, triangles) = springbake_core::shapes::box_mesh([0.0, 1.0, 0.0], [2.0, 1.05, 0.3]);
-    let mut obj = String::from("o plank\n");
-    for p in &points {
-        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for t in triangles {
-        let [a, b, c] = t.map(|k| k + 1);
-        obj += &format!("f {a} {b} {c}\n");
-    }
-    std::fs::write(dir.path().join("plank.obj"), obj).unwrap();
+    let plank = springbake_core::shapes::box_mesh([0.0, 1.0, 0.0], [2.0, 1.05, 0.3]);
+    std::fs::write(
+        dir.path().join("plank.obj"),
+        support::obj_text("plank", plank),
+    )
+    .unwrap();
     let scene = |solver: &str| {
         format!(
             "[output]\npath = \"out.pc2\"\nframes = 12\n{solver}\
@@ -822,4 +809,56 @@ fn a_pinned_wooden_plank_is_held_rigid_and_named() {
         err.contains("stiff_bodies") || err.contains("rigid"),
         "{err}"
     );
+}
+
+/// A light ball dropped onto a soft block dents it and settles without gaining energy:
+/// a body–body contact that overlaps at a substep's start (found a substep late, or pressed
+/// back in by the floor under the squeezed jelly) opens slowly instead of at `depth / Δt`.
+/// Before, a foam ball on a jelly block gained energy from its first touch, folded cells
+/// from frame 12 and ended at thousands of joules.
+#[test]
+fn a_ball_dropped_on_a_jelly_block_settles_without_gaining_energy() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = |name: &str, mesh| {
+        std::fs::write(
+            dir.path().join(format!("{name}.obj")),
+            support::obj_text(name, mesh),
+        )
+        .unwrap();
+    };
+    obj(
+        "block",
+        springbake_core::shapes::box_mesh([-0.15, 0.0, -0.15], [0.15, 0.3, 0.15]),
+    );
+    // A UV sphere of r 0.1 m as a quad mesh whose rings meet at the poles in degenerate quads
+    // (as the bake that first showed this was given).
+    let (rings, segments) = (16, 32);
+    let mut points = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f64::consts::PI * f64::from(i) / f64::from(rings);
+        for j in 0..segments {
+            let phi = 2.0 * std::f64::consts::PI * f64::from(j) / f64::from(segments);
+            points.push(springbake_core::nalgebra::Point3::new(
+                0.1 * theta.sin() * phi.cos(),
+                1.0 + 0.1 * theta.cos(),
+                0.1 * theta.sin() * phi.sin(),
+            ));
+        }
+    }
+    let mut triangles = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let at = |i: u32, j: u32| i * segments + j % segments;
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j), at(i + 1, j + 1));
+            triangles.push([a, c, d]);
+            triangles.push([a, d, b]);
+        }
+    }
+    obj("ball", (points, triangles));
+    let scene = "[output]\npath = \"out.pc2\"\nframes = 24\n[world]\nfloor = 0.0\n\
+                 [[body]]\nsource = \"block.obj\"\nname = \"block\"\nmaterial = \"jelly\"\ncells = 8\n\
+                 [[body]]\nsource = \"ball.obj\"\nname = \"ball\"\nmaterial = \"foam\"\ncells = 6\n";
+    let err = support::bake_scene(dir.path(), "ball_on_jelly.toml", scene);
+    assert!(!err.contains("energy rose"), "{err}");
+    assert!(!err.contains("inverted"), "{err}");
 }

@@ -90,3 +90,20 @@ pub fn bake_file(dir: &Path, input: &str, output: &str, frames: &str) -> String 
     assert!(out.status.success(), "{err}");
     err
 }
+
+/// An OBJ file's text holding one object `name` of `triangles` over `points`.
+#[allow(dead_code)] // not every test file writes meshes
+pub fn obj_text(
+    name: &str,
+    (points, triangles): (Vec<springbake_core::nalgebra::Point3<f64>>, Vec<[u32; 3]>),
+) -> String {
+    let mut text = format!("o {name}\n");
+    for p in &points {
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for t in triangles {
+        let [a, b, c] = t.map(|k| k + 1);
+        text += &format!("f {a} {b} {c}\n");
+    }
+    text
+}

@@ -795,8 +795,9 @@ fn predict(world: &mut World, model: &mut Model, dt: f64) {
 /// since the start (parts that start a centimetre apart, inside each other's layers, or
 /// overlapping), m/s, beyond stopping it; the rest of its push moves the node's body as a
 /// whole without giving it velocity (`shift_bodies`). The layer's stored push would otherwise
-/// throw such parts apart at `depth / Δt`. Contacts that begin later push freely: their
-/// depth came from motion, and the push back is the bounce.
+/// throw such parts apart at `depth / Δt`. A body–body constraint closer than its gap at a
+/// substep's start opens at this speed at most too, beyond stopping its approach
+/// ([`bodies`]); its overlap came from a substep before, not from this one's motion.
 pub const MAX_SEPARATION_SPEED: f64 = 0.1;
 
 /// The velocity change `kick` a body contact gives a node moving at `v`, limited so that the
@@ -936,6 +937,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         separating: model
             .separated_by
             .map(|_| (&model.overlapping[..], MAX_SEPARATION_SPEED * dt)),
+        opening: MAX_SEPARATION_SPEED * dt,
     };
     model.contact_shifted = true;
     contacts.solve(
