@@ -284,37 +284,32 @@ fn cantilever(integrator: Integrator) {
         "cantilever E 100 MPa tip sag:{line} Euler-Bernoulli {:.2} mm",
         theory(&m) * 1e3
     );
+    // A beam of `length` at each cell count: tip sag at the automatic substeps and at 300.
+    let by_cells = |m: &Material, length: f64, counts: [u32; 3]| {
+        let mut line = String::new();
+        for cells in counts {
+            let b = beam_of(length, cells);
+            let auto = sag_of(&b, m, true, None);
+            let many = sag_of(&b, m, true, Some(300));
+            line += &format!(
+                " {cells} cells {:.0} mm (300 substeps {:.0});",
+                auto * 1e3,
+                many * 1e3
+            );
+        }
+        line
+    };
     let stiff = Material::new("E 10 MPa", 1.0e7, 0.3, 1000.0, 0.5).expect("material");
-    let mut line = String::new();
-    for cells in [10, 20, 40] {
-        let b = beam(cells);
-        let auto = sag_of(&b, &stiff, true, None);
-        let many = sag_of(&b, &stiff, true, Some(300));
-        line += &format!(
-            " {cells} cells {:.0} mm (300 substeps {:.0});",
-            auto * 1e3,
-            many * 1e3
-        );
-    }
     println!(
-        "cantilever E 10 MPa by cells:{line} Euler-Bernoulli {:.0} mm",
+        "cantilever E 10 MPa by cells:{} Euler-Bernoulli {:.0} mm",
+        by_cells(&stiff, 1.0, [10, 20, 40]),
         theory(&stiff) * 1e3
     );
     // Rubber's E, ν and ρ (damping 0.5, so it settles in the 4 s), a 0.5 m beam: small strain.
     let rubber = Material::new("rubber", 1.5e6, 0.47, 1100.0, 0.5).expect("material");
-    let mut line = String::new();
-    for cells in [5, 10, 20] {
-        let b = beam_of(0.5, cells);
-        let auto = sag_of(&b, &rubber, true, None);
-        let many = sag_of(&b, &rubber, true, Some(300));
-        line += &format!(
-            " {cells} cells {:.0} mm (300 substeps {:.0});",
-            auto * 1e3,
-            many * 1e3
-        );
-    }
     println!(
-        "cantilever rubber 0.5 m by cells:{line} Euler-Bernoulli {:.0} mm",
+        "cantilever rubber 0.5 m by cells:{} Euler-Bernoulli {:.0} mm",
+        by_cells(&rubber, 0.5, [5, 10, 20]),
         theory_of(&rubber, 0.5) * 1e3
     );
     let wood = Material::preset("wood").expect("preset");

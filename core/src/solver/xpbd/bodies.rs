@@ -49,10 +49,10 @@ pub(crate) struct BodyContacts<'a> {
     /// How far apart the constraints keep the surfaces, m ([`REST_GAP_LAYERS`] of the layer).
     pub gap: f64,
     /// Per node, while parts that started overlapping are still separating: in contact at
-    /// the start; and how far such a contact may open in one substep, m.
-    pub separating: Option<(&'a [bool], f64)>,
-    /// How far any contact closer than the gap at the substep's start may open in one
-    /// substep, beyond stopping its features' approach, m.
+    /// the start (such a contact opens by `opening` at most a substep whatever its start).
+    pub separating: Option<&'a [bool]>,
+    /// How far a contact closer than the gap at the substep's start, or a separating one,
+    /// may open in one substep beyond where it started, m.
     pub opening: f64,
 }
 
@@ -94,20 +94,21 @@ impl BodyContacts<'_> {
                 continue;
             }
             let mut push = self.gap - gap;
-            if let Some((overlapping, opening)) = self.separating {
-                if stencil.iter().any(|&(k, _)| overlapping[k as usize]) {
-                    let moving = (c.normal.dot(&d_prev) + opening - gap).clamp(0.0, push);
-                    let left = c.normal * ((push - moving) / inverse_mass);
-                    for &(node, s) in stencil {
-                        rest[node as usize] += left * (s * self.inv_mass[node as usize]);
-                    }
-                    out.rested |= moving < push;
-                    push = moving;
-                }
-            }
+            // Opened by `opening` at most beyond where the substep started (module docs).
             let start = c.normal.dot(&d_prev);
-            if start < self.gap {
-                push = push.min((start + self.opening - gap).max(0.0));
+            let allowed = (start + self.opening - gap).clamp(0.0, push);
+            let separating = self
+                .separating
+                .is_some_and(|overlapping| stencil.iter().any(|&(k, _)| overlapping[k as usize]));
+            if separating {
+                let left = c.normal * ((push - allowed) / inverse_mass);
+                for &(node, s) in stencil {
+                    rest[node as usize] += left * (s * self.inv_mass[node as usize]);
+                }
+                out.rested |= allowed < push;
+                push = allowed;
+            } else if start < self.gap {
+                push = allowed;
             }
             out.touched = true;
             out.depth = out.depth.max(-gap);

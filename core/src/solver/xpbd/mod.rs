@@ -934,9 +934,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         previous: &model.previous,
         friction: world.settings.layer.friction,
         gap: bodies::REST_GAP_LAYERS * world.settings.layer.thickness_m,
-        separating: model
-            .separated_by
-            .map(|_| (&model.overlapping[..], MAX_SEPARATION_SPEED * dt)),
+        separating: model.separated_by.map(|_| &model.overlapping[..]),
         opening: MAX_SEPARATION_SPEED * dt,
     };
     model.contact_shifted = true;
