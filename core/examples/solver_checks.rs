@@ -2,12 +2,14 @@
 //! rebound per material preset, fidelity against the explicit solver (centre of mass over a
 //! drop and two bounces, resting height), spin kept by a free cube, a column's sag under its
 //! own weight, the jelly block swept by the capsule (inverted cells, time per frame), the
-//! jelly ball dropped at 8 m/s with volume preservation, a 1 cm cube, and rubber cubes of
-//! 1 cm to 1 m dropped at two frame rates. Prints one line per
-//! check; nothing here is asserted (the tests in `core/tests/xpbd.rs` are).
+//! jelly ball dropped at 8 m/s with volume preservation, a 1 cm cube, rubber cubes of 1 cm
+//! to 1 m dropped at two frame rates, a rubber ball and cubes bouncing for 4 s (each bounce's
+//! height and energy) and tilted cubes tumbling (whether a bounce ever adds energy). Prints
+//! one line per check; nothing here is asserted (the tests in `core/tests/xpbd.rs` are).
 //!
 //! `cargo run --release -p springbake-core --example solver_checks [-- [xpbd|euler|newmark]
-//! [--substeps N] [rebound fidelity spin column sweep ball tiny scale live]]` (no check named: all)
+//! [--substeps N] [rebound fidelity spin column sweep ball tiny scale bounces tumbles live]]`
+//! (no check named: all)
 
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
@@ -50,6 +52,18 @@ fn lowest(w: &World) -> f64 {
         .position
         .iter()
         .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The lowest display-surface contact point's height, m.
+fn lowest_surface(w: &World) -> f64 {
+    let (s, x) = (&w.surface, &w.nodes.position);
+    (0..s.nodes.len())
+        .map(|k| {
+            (0..8)
+                .map(|c| x[s.nodes[k][c] as usize].y * s.weights[k][c])
+                .sum::<f64>()
+        })
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -109,6 +123,8 @@ fn main() {
                     "ball",
                     "tiny",
                     "scale",
+                    "bounces",
+                    "tumbles",
                 ]
                 .contains(&a.as_str())
             })
@@ -157,9 +173,141 @@ fn main() {
         scaled_drop(integrator, 0.1, 1.0);
         scaled_drop(integrator, 0.2, 1.0);
     }
+    if wanted("bounces") {
+        bounces(integrator, "ball r 0.1 m", &support::rebound_ball(), 0.1);
+        for (edge, cells) in [(0.1, 10), (0.2, 10), (1.0, 10)] {
+            let (p, t) = box_mesh([0.0, 1.0, 0.0], [edge, 1.0 + edge, edge]);
+            bounces(
+                integrator,
+                &format!("{edge} m cube"),
+                &body((p, t), cells),
+                0.5 * edge,
+            );
+        }
+    }
+    if wanted("tumbles") {
+        tumbles(integrator);
+    }
     if wanted("live") {
         live(integrator);
     }
+}
+
+/// The kinetic and gravity energy above rest of a body as each of its flights starts (every
+/// display-surface point 5 mm above the floor), J: no bounce can add to it.
+#[derive(Default)]
+struct Flights {
+    energies: Vec<f64>,
+    flying: bool,
+}
+
+impl Flights {
+    /// After a frame: `rest` is the height of the body's centre at rest on the floor, m.
+    fn record(&mut self, w: &World, d: &springbake_core::solver::FrameDiagnostics, rest: f64) {
+        let airborne = lowest_surface(w) > 0.005;
+        if airborne && !self.flying {
+            let mass: f64 = w.nodes.mass.iter().sum();
+            let g = w.settings.gravity.norm();
+            (self.energies).push(d.kinetic_energy + d.gravity_energy - mass * g * rest);
+        }
+        self.flying = airborne;
+    }
+
+    /// The largest rise of a flight's energy over the one before, a share of it.
+    fn largest_rise(&self) -> f64 {
+        (self.energies.windows(2))
+            .map(|p| (p[1] - p[0]) / p[0])
+            .fold(0.0, f64::max)
+    }
+
+    fn list(&self) -> String {
+        let each: Vec<String> = self.energies.iter().map(|e| format!("{e:.2}")).collect();
+        each.join(", ")
+    }
+}
+
+/// A rubber body dropped from 1 m (its bottom; `rest` is its centre's height at rest on the
+/// floor), 4 s at 24 frames a second: the peak of each bounce (the centre's height above
+/// `rest`) and its share of the one before. A damped elastic body keeps one share from bounce
+/// to bounce, whatever the height; a solver that loses more at slow impacts shows the shares
+/// falling.
+fn bounces(integrator: Integrator, name: &str, b: &Body, rest: f64) {
+    let rubber = Material::preset("rubber").expect("preset");
+    let mut w = world(b, &rubber, integrator, Vector3::zeros(), true);
+    let t0 = Instant::now();
+    let start = centre(&w).y - rest;
+    let (mut peaks, mut last, mut rising) = (vec![start], centre(&w).y, false);
+    let mut substeps = Vec::new();
+    let mut flights = Flights::default();
+    for f in 1..=96 {
+        let d = frame(&mut w, f);
+        substeps.push(d.substeps);
+        flights.record(&w, &d, rest);
+        let y = centre(&w).y;
+        if y > last + 1e-5 {
+            rising = true;
+        } else if rising && y < last {
+            rising = false;
+            // Wobbles on the floor are not bounces.
+            if last - rest > 0.005 {
+                peaks.push(last - rest);
+            }
+        }
+        last = y;
+    }
+    let shares: Vec<String> = peaks
+        .windows(2)
+        .map(|p| format!("{:.0} %", 100.0 * p[1] / p[0]))
+        .collect();
+    let heights: Vec<String> = peaks.iter().map(|p| format!("{p:.3}")).collect();
+    println!(
+        "bounces {name}: peaks {} m, each of the one before {}; energy above rest in each flight {} J; substeps a frame {}–{}, {:.2} s",
+        heights.join(", "),
+        shares.join(", "),
+        flights.list(),
+        substeps.iter().min().unwrap_or(&0),
+        substeps.iter().max().unwrap_or(&0),
+        t0.elapsed().as_secs_f64()
+    );
+}
+
+/// Cubes dropped 1 m tilted, so they land on an edge or a corner and tumble (rubber and soft
+/// rubber, 10 and 20 cm, 10 cells, three tilts), 3 s at 24 frames a second: the energy above
+/// rest (kinetic + gravity) in each flight, and the largest rise from one flight to the next,
+/// which no bounce can give.
+fn tumbles(integrator: Integrator) {
+    let mut worst = 0.0_f64;
+    let t0 = Instant::now();
+    for material in ["rubber", "soft_rubber"] {
+        for edge in [0.1, 0.2] {
+            for (ax, az) in [(0.3, 0.2), (0.6, 0.1), (0.15, 0.7)] {
+                let (p, t) = box_mesh([-0.5 * edge; 3], [0.5 * edge; 3]);
+                let turn = springbake_core::nalgebra::Rotation3::from_euler_angles(ax, 0.0, az);
+                let lift = Vector3::new(0.0, 1.0 + edge, 0.0);
+                let p = p.into_iter().map(|q| turn * q + lift).collect();
+                let b = body((p, t), 10);
+                let m = Material::preset(material).expect("preset");
+                let mut w = world(&b, &m, integrator, Vector3::zeros(), true);
+                let mut flights = Flights::default();
+                for f in 1..=72 {
+                    let d = frame(&mut w, f);
+                    flights.record(&w, &d, 0.5 * edge);
+                }
+                let rise = flights.largest_rise();
+                worst = worst.max(rise);
+                println!(
+                    "tumbles {material} {edge} m tilted ({ax}, {az}): energy above rest in each flight {} J, largest rise {:.0} %",
+                    flights.list(),
+                    100.0 * rise
+                );
+            }
+        }
+    }
+    println!(
+        "tumbles: largest rise of any flight's energy over the one before {:.0} %, {:.1} s",
+        100.0 * worst,
+        t0.elapsed().as_secs_f64()
+    );
 }
 
 /// The viewer's live mode on a 1 m rubber cube (15 cells, 16³ nodes) resting on the floor, a

@@ -4,6 +4,7 @@
 //! mesh (`mesh`, `product_world`; also used by `examples/solver_checks.rs`). Each test file includes it with
 //! `mod support;`; it holds set-up only, no assertions.
 
+use springbake_core::lattice::fill::cell_fill;
 use springbake_core::lattice::{
     fit_lattice, surface_samples, FitSettings, Lattice, Resolution, SpringLayout,
 };
@@ -84,7 +85,8 @@ pub fn mesh((points, triangles): (Vec<Point3<f64>>, Vec<[u32; 3]>), cells: u32) 
 }
 
 /// A world holding `m` in `material` at `velocity` as the product sets up a mesh (contact on
-/// the display surface sampled at half a cell, the default layer with friction 0.4), stepped
+/// the display surface sampled at half a cell, the default layer with friction 0.4, cells
+/// weighing what the mesh fills of them under XPBD), stepped
 /// by `integrator`, with a floor at y = 0 when `floor`.
 #[allow(dead_code)]
 pub fn product_world(
@@ -108,6 +110,11 @@ pub fn product_world(
         ..WorldSettings::default()
     });
     let h = w.add_lattice_body("body", &m.lattice, material, velocity);
+    if integrator == Integrator::Xpbd {
+        if let Some(fill) = cell_fill(&m.lattice, &m.points, &m.triangles) {
+            w.set_cell_fill(h, &fill);
+        }
+    }
     let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
     w.add_contact_surface(h, &m.lattice, &samples, &areas);
     w
