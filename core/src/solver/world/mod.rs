@@ -370,7 +370,8 @@ impl World {
     ) -> Result<FrameDiagnostics, SimulationError> {
         let mut choice = self.choose_substeps(frame_dt);
         let (kinetic, elastic, gravity) = self.frame_energies();
-        // A frame that folds a cell is taken again from here at twice the substeps (`redo`).
+        // A frame that folds or crowds a cell is taken again from here at twice the substeps
+        // (`redo`).
         let start = self.redo_point();
         let mut redos = 0;
         let (acc, census, inverted) = loop {
@@ -396,7 +397,7 @@ impl World {
             if let Some(start) = start.as_deref().filter(|_| redos < redo::MAX_REDOS) {
                 let now = *inverted.get_or_insert_with(|| self.inverted_cells());
                 let doubled = super::xpbd::doubled_substeps(choice, frame_dt);
-                if let Some(doubled) = doubled.filter(|_| now > 0 && now > start.inverted_cells()) {
+                if let Some(doubled) = doubled.filter(|_| self.spoiled_since(start, now)) {
                     self.redo_from(start);
                     super::xpbd::hold_doubling(self);
                     (choice, redos) = (doubled, redos + 1);

@@ -51,6 +51,7 @@ use super::team::{self, Chunks};
 use super::{World, PAR_CHUNK};
 pub(crate) use cells::CellSet;
 use cells::{CellInput, PointGroups};
+pub(crate) use crowding::CROWDED_J;
 use glue::Glue;
 use impacts::{impact_shares, speed_rate, ImpactHold};
 use nalgebra::Vector3;
@@ -599,8 +600,16 @@ pub(crate) fn put_cells(world: &mut World, cells: CellSet) {
     }
 }
 
+/// The smallest corner volume ratio of any of `world`'s cells at node positions `x` (`None`
+/// before the model is built).
+pub(crate) fn most_collapsed(world: &World, x: &[V3]) -> Option<f64> {
+    let model = world.xpbd.as_ref()?;
+    Some(model.cells.most_collapsed(x))
+}
+
 /// Keep a frame's doubling for the frames after it ([`crowding::Crowding::raise`]): the frame
-/// starting now is taken again at twice the substeps because it folded a cell.
+/// starting now is taken again at twice the substeps because it folded a cell or crowded one
+/// (the world's `redo`).
 pub(crate) fn hold_doubling(world: &mut World) {
     let time = world.time;
     if let Some(model) = world.xpbd.as_mut() {
