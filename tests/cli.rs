@@ -936,3 +936,29 @@ fn a_tumbling_rubber_cube_never_leaves_a_bounce_with_more_energy() {
         );
     }
 }
+
+/// A display mesh much coarser than its lattice cannot show what the lattice does: an
+/// 8-vertex box's faces stay flat whatever its cells do. The CLI says so before the bake and
+/// how to fix it; a mesh as fine as its cells (Blender's icosphere) gets no such note.
+#[test]
+fn a_mesh_coarser_than_its_lattice_is_named_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("box.obj"),
+        support::obj_text(
+            "box",
+            springbake_core::shapes::box_mesh([0.0, 0.5, 0.0], [0.3, 0.8, 0.3]),
+        ),
+    )
+    .unwrap();
+    let err = support::bake_file(dir.path(), "box.obj", "box.pc2", "2");
+    assert!(
+        err.contains("body \"box\" has a coarse mesh for its lattice: 100 % of its surface"),
+        "{err}"
+    );
+    assert!(err.contains("Subdivision Surface"), "{err}");
+    let ball = corpus("blender/icosphere.glb");
+    std::fs::copy(&ball, dir.path().join("ball.glb")).unwrap();
+    let err = support::bake_file(dir.path(), "ball.glb", "ball.pc2", "2");
+    assert!(!err.contains("coarse mesh"), "{err}");
+}

@@ -271,6 +271,60 @@ pub fn under_resolved_notes(prepared: &Prepared, fps: f64) -> Vec<String> {
         .collect()
 }
 
+/// Cells a display face's edge may span before the face hides the lattice's bending.
+pub const COARSE_FACE_CELLS: f64 = 2.0;
+
+/// Flexible lattice bodies (not held rigid) whose display mesh is too coarse for its lattice:
+/// at least half its surface lies in triangles with an edge over [`COARSE_FACE_CELLS`]
+/// cells. Each vertex follows the lattice where it sits, so such a face stays flat and its
+/// edges straight whatever the cells between its corners do: an 8-vertex box shows neither
+/// a dent nor a bend, and a ball dropped on it seems to sink into a flat face. Say so, with
+/// what to do, before the bake.
+pub fn coarse_mesh_notes(prepared: &mut Prepared, scene: &SceneFile) -> Vec<String> {
+    use springbake_core::scene::{BodyKind, ModelKind};
+    let held = prepared.world.held_bodies();
+    (0..prepared.bodies.len())
+        .filter_map(|b| {
+            let body = &prepared.bodies[b];
+            let section = scene.body.get(body.section)?;
+            let flexible = section.kind == BodyKind::Flexible
+                && section.model == ModelKind::Lattice
+                && !held.contains(&body.name);
+            if !flexible {
+                return None;
+            }
+            let mesh = prepared.export_scene.meshes.get(body.mesh_index)?;
+            let (points, h) = (prepared.vertex_positions(b), body.lattice.cell_size);
+            let (mut area, mut coarse, mut longest) = (0.0, 0.0, 0.0_f64);
+            for t in mesh.triangles() {
+                let corner = |k: usize| points.get(t[k] as usize).copied();
+                let (Some(a), Some(b), Some(c)) = (corner(0), corner(1), corner(2)) else {
+                    continue;
+                };
+                let cells = (b - a).norm().max((c - b).norm()).max((a - c).norm()) / h;
+                let size = 0.5 * (b - a).cross(&(c - a)).norm();
+                area += size;
+                longest = longest.max(cells);
+                if cells > COARSE_FACE_CELLS {
+                    coarse += size;
+                }
+            }
+            (area > 0.0 && coarse >= 0.5 * area).then(|| {
+                format!(
+                    "body \"{}\" has a coarse mesh for its lattice: {:.0} % of its surface is \
+                     in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells (up to \
+                     {longest:.1}), and a face stays flat whatever the cells between its \
+                     corners do, so dents, bulges and bends inside it will not show; subdivide \
+                     the mesh before export to see them (in Blender a Subdivision Surface \
+                     modifier, Simple, applied), or use fewer cells to bake the same look faster",
+                    body.name,
+                    100.0 * coarse / area
+                )
+            })
+        })
+        .collect()
+}
+
 /// A body that starts inside a static collider, deeper than the contact layer, is not held
 /// in by it: the collider's faces push only outwards, so the body is thrown out through the
 /// first face it reaches (a cube dropped inside a closed box collider gained 7.8 kJ at its

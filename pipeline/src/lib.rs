@@ -621,6 +621,9 @@ pub fn bake(
         for text in budget::under_resolved_notes(&prepared, loaded.scene.output.fps) {
             note(&text);
         }
+        for text in budget::coarse_mesh_notes(&mut prepared, &loaded.scene) {
+            note(&text);
+        }
         for text in budget::inside_collider_notes(&prepared) {
             note(&text);
         }

@@ -55,6 +55,9 @@ impl Simulation {
         for text in springbake_pipeline::budget::inside_collider_notes(&prepared) {
             eprintln!("springbake: note: {text}");
         }
+        for text in springbake_pipeline::budget::coarse_mesh_notes(&mut prepared, &loaded.scene) {
+            eprintln!("springbake: note: {text}");
+        }
         let triangles = prepared
             .bodies
             .iter()
