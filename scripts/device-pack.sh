@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Packs what a run on the device machine needs (an NVIDIA GPU host lent to some sessions: it
-# has no cargo, another Python, and no Vulkan loader; docs/benchmarks.md, "twenty-fourth
+# has no cargo, another Python, and no Vulkan loader; docs/benchmarks/2026-12-04-to-05.md, "twenty-fourth
 # session"): builds `gpu_bench`, the GPU agreement tests and the CLI in release here and strips
 # them into .devbin/, with libpython and a zip of its standard library (the CLI embeds that
 # Python), and fetches the Vulkan loader and glvnd packages into .gl/. Both folders are ignored.
