@@ -900,16 +900,11 @@ fn a_tumbling_rubber_cube_never_leaves_a_bounce_with_more_energy() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    // The cube's lowest corner per frame, from the point cache (a 32-byte header, then
-    // frames of 8 vertices as three f32).
+    // The cube's lowest corner per frame, from the point cache.
     let pc2 = std::fs::read(dir.path().join("out.pc2")).unwrap();
-    let f32_at = |at: usize| f32::from_le_bytes(pc2[at..at + 4].try_into().unwrap());
-    let lowest: Vec<f32> = (0..(pc2.len() - 32) / 96)
-        .map(|f| {
-            (0..8)
-                .map(|v| f32_at(32 + 96 * f + 12 * v + 4))
-                .fold(f32::MAX, f32::min)
-        })
+    let lowest: Vec<f32> = support::pc2_frames(&pc2)
+        .iter()
+        .map(|corners| corners.iter().map(|p| p[1]).fold(f32::MAX, f32::min))
         .collect();
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
@@ -961,4 +956,58 @@ fn a_mesh_coarser_than_its_lattice_is_named_before_the_bake() {
     std::fs::copy(&ball, dir.path().join("ball.glb")).unwrap();
     let err = support::bake_file(dir.path(), "ball.glb", "ball.pc2", "2");
     assert!(!err.contains("coarse mesh"), "{err}");
+}
+
+/// The annotated example (README, docs/scene.md) bakes without a warning or a note that its
+/// mesh is too coarse, and shows what it is for: the capsule's dent in the face it hits,
+/// which bows by centimetres (an 8-vertex cube's face would stay flat).
+#[test]
+fn the_annotated_example_bakes_and_shows_the_capsules_dent() {
+    use springbake_core::nalgebra::{Matrix3, Vector3};
+    let dir = tempfile::tempdir().unwrap();
+    let examples = springbake_testkit::workspace_root().join("examples");
+    for file in ["drop_and_hit.toml", "soft_cube.obj"] {
+        std::fs::copy(examples.join(file), dir.path().join(file)).unwrap();
+    }
+    let o = support::springbake_in(
+        dir.path(),
+        &[
+            "bake",
+            "drop_and_hit.toml",
+            "-o",
+            "out.pc2",
+            "--no-plugins",
+            "--progress",
+            "quiet",
+        ],
+    );
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        !err.contains("warning") && !err.contains("coarse mesh"),
+        "{err}"
+    );
+    let frames = support::pc2_frames(&std::fs::read(dir.path().join("out.pc2")).unwrap());
+    assert_eq!(frames.len(), 72);
+    // The face the capsule hits (−x at rest): how far its points get from their best plane.
+    let face: Vec<usize> = (0..frames[0].len())
+        .filter(|&v| (frames[0][v][0] + 0.25).abs() < 1e-5)
+        .collect();
+    assert_eq!(face.len(), 81);
+    let bow = |points: &[[f32; 3]]| {
+        let p: Vec<Vector3<f64>> = face
+            .iter()
+            .map(|&v| Vector3::from(points[v].map(f64::from)))
+            .collect();
+        let c = p.iter().sum::<Vector3<f64>>() / p.len() as f64;
+        let spread: Matrix3<f64> = p.iter().map(|q| (q - c) * (q - c).transpose()).sum();
+        let eigen = spread.symmetric_eigen();
+        let n = eigen
+            .eigenvectors
+            .column(eigen.eigenvalues.imin())
+            .into_owned();
+        p.iter().map(|q| (q - c).dot(&n).abs()).fold(0.0, f64::max)
+    };
+    let most = frames.iter().map(|f| bow(f)).fold(0.0, f64::max);
+    assert!(most > 0.01, "the hit face bows {most} m at most");
 }

@@ -107,3 +107,22 @@ pub fn obj_text(
     }
     text
 }
+
+/// The frames of a PC2 point cache: a 32-byte header (signature, version, point count, start
+/// frame, sample rate, sample count), then each sample's points as three little-endian f32.
+#[allow(dead_code)]
+pub fn pc2_frames(bytes: &[u8]) -> Vec<Vec<[f32; 3]>> {
+    let int = |at: usize| i32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let float = |at: usize| f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    let (points, samples) = (int(16), int(28));
+    (0..samples)
+        .map(|s| {
+            (0..points)
+                .map(|p| {
+                    let at = 32 + 12 * (s * points + p);
+                    [float(at), float(at + 4), float(at + 8)]
+                })
+                .collect()
+        })
+        .collect()
+}
