@@ -167,31 +167,27 @@ pub fn prepare(
             let mesh_index = if single_source {
                 pending.len()
             } else {
-                // Meshes of a merged scene are stored in simulation metres.
+                // Meshes of a merged scene are stored in simulation metres (their offset, as
+                // in a single source, is motion the frames carry).
                 let mut m = mesh.clone();
-                m.world_from_local =
-                    Matrix4::new_translation(&offset) * sim_from_source * mesh.world_from_local;
+                m.world_from_local = sim_from_source * mesh.world_from_local;
                 export_scene.meshes.push(m);
                 export_scene.meshes.len() - 1
             };
             let sim_from_local =
                 Matrix4::new_translation(&offset) * sim_from_source * mesh.world_from_local;
-            let local_from_sim = if single_source {
-                // Offsets are motion: the baked frames carry them in the source's own frame.
-                (sim_from_source * mesh.world_from_local).try_inverse()
-            } else {
-                export_scene.meshes[mesh_index]
-                    .world_from_local
-                    .try_inverse()
-            }
-            .ok_or_else(|| PipelineError::Body {
-                body: b,
-                source_path: source.source.path.clone(),
-                message: format!(
-                    "mesh \"{}\" has a singular transform (a zero scale?)",
-                    mesh.name
-                ),
-            })?;
+            // Offsets are motion: the baked frames carry them in the mesh's own frame, so a
+            // point cache laid on the artist's object moves it to where it was simulated.
+            let local_from_sim = (sim_from_source * mesh.world_from_local)
+                .try_inverse()
+                .ok_or_else(|| PipelineError::Body {
+                    body: b,
+                    source_path: source.source.path.clone(),
+                    message: format!(
+                        "mesh \"{}\" has a singular transform (a zero scale?)",
+                        mesh.name
+                    ),
+                })?;
             let points: Vec<Point3<f64>> = mesh
                 .primitives
                 .iter()
