@@ -1052,3 +1052,39 @@ fn point_caches_of_bodies_from_several_files_carry_their_offsets() {
         }
     }
 }
+
+/// A body's point cache does not depend on what else is in the scene: Blender's icosphere
+/// (glTF) alone and beside a body from another file starts from the same points, its offset
+/// carried and its axes turned Z-up for Blender's import of the glTF. Beside another file it
+/// used to be written in the file's Y-up axes and without its offset.
+#[test]
+fn a_gltf_bodys_point_cache_is_the_same_beside_a_body_from_another_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(corpus("blender/icosphere.glb"), dir.path().join("ball.glb")).unwrap();
+    std::fs::write(
+        dir.path().join("box.obj"),
+        support::obj_text(
+            "box",
+            springbake_core::shapes::box_mesh([3.0, 0.0, 0.0], [3.2, 0.2, 0.2]),
+        ),
+    )
+    .unwrap();
+    let ball = "[[body]]\nsource = \"ball.glb\"\ncells = 4\noffset = [0.5, 1.0, 0.2]\n";
+    let alone = format!("[output]\npath = \"alone.pc2\"\nframes = 2\n{ball}");
+    let beside = format!(
+        "[output]\npath = \"beside.pc2\"\nframes = 2\n{ball}\
+         [[body]]\nsource = \"box.obj\"\ncells = 2\n"
+    );
+    support::bake_scene(dir.path(), "alone.toml", &alone);
+    support::bake_scene(dir.path(), "beside.toml", &beside);
+    let first =
+        |file: &str| support::pc2_frames(&std::fs::read(dir.path().join(file)).unwrap())[0].clone();
+    let (alone, beside) = (first("alone.pc2"), first("beside_Icosphere.pc2"));
+    assert_eq!(alone.len(), beside.len());
+    for (a, b) in alone.iter().zip(&beside) {
+        assert!(
+            (0..3).all(|k| (a[k] - b[k]).abs() < 1e-6),
+            "{a:?} alone, {b:?} beside"
+        );
+    }
+}

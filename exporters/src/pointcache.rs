@@ -5,7 +5,8 @@
 //! OBJ Blender imported (see `exporters/tests/pointcache_blender.rs`), and on the glTF it
 //! imported: Blender turns a glTF's data to Z-up, so glTF sources' points are written as
 //! `(x, −z, y)` ([`PointCacheAxes::Blender`], the default; `[output] cache_axes = "source"`
-//! keeps the file's Y-up axes for Y-up importers).
+//! keeps the file's Y-up axes for Y-up importers). A scene merged from several files
+//! (`importer = "merged"`) tells each mesh's source by its `source_key` (glTF's `node:<i>`).
 //!
 //! # PC2 (little endian; layout read by Blender's `MOD_meshcache_pc2.cc`)
 //! | offset | type | value |
@@ -156,7 +157,7 @@ fn export_each(
             .at(format!("baked.meshes[{k}]"))
         })?;
         let mut frames = source_point_frames(mesh, bm, k, out_path)?;
-        if settings.axes == PointCacheAxes::Blender && scene.source.importer == "gltf" {
+        if settings.axes == PointCacheAxes::Blender && from_gltf(scene, mesh) {
             // Blender's glTF importer turns the data Y-up → Z-up: (x, y, z) → (x, −z, y).
             for p in frames.iter_mut().flatten() {
                 *p = [p[0], -p[2], p[1]];
@@ -272,4 +273,14 @@ fn file_names(out: &Path, meshes: Vec<&DisplayMesh>) -> Vec<PathBuf> {
             out.with_file_name(format!("{stem}_{name}{ext}"))
         })
         .collect()
+}
+
+/// Whether `mesh` came from a glTF file: the scene's importer, or in a scene merged from
+/// several files the mesh's own key (`node:<index>`, see [`DisplayMesh::source_key`]).
+fn from_gltf(scene: &ImportedScene, mesh: &DisplayMesh) -> bool {
+    match scene.source.importer.as_str() {
+        "gltf" => true,
+        "merged" => mesh.source_key.starts_with("node:"),
+        _ => false,
+    }
 }
