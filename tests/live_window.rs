@@ -173,7 +173,9 @@ fn the_live_window_dents_a_block_under_the_mouse_and_keeps_its_frame_rate() {
         std::thread::sleep(Duration::from_millis(80));
     }
     // The capsule comes down and the block dents at the pace the live window keeps: give it
-    // a second, and up to five on a loaded machine (a CI run saw 3.94 mm of the 4 mm at 1 s).
+    // a second, and up to five on a loaded machine. The top under the capsule (within its
+    // radius of its axis) goes down about 2 cm; measured across the capsule's whole reach it
+    // read 4–5 mm, and a 4 mm bound failed a CI run at 3.99 mm.
     let capsule = |f: &Value| f["capsule_height"].as_f64().unwrap();
     let under = |f: &Value| f["top_under_capsule"].as_f64().unwrap_or(f64::INFINITY);
     let dented = || {
@@ -183,7 +185,7 @@ fn the_live_window_dents_a_block_under_the_mouse_and_keeps_its_frame_rate() {
             .map(under)
             .fold(f64::INFINITY, f64::min);
         let last = frames.last().map_or(f64::INFINITY, capsule);
-        under(&before) - lowest > 0.004 && capsule(&before) - last > 0.05
+        under(&before) - lowest > 0.01 && capsule(&before) - last > 0.05
     };
     std::thread::sleep(Duration::from_millis(1000));
     let waited = Instant::now();
@@ -211,7 +213,7 @@ fn the_live_window_dents_a_block_under_the_mouse_and_keeps_its_frame_rate() {
         .map(under)
         .fold(f64::INFINITY, f64::min);
     assert!(
-        under(&before) - lowest > 0.004,
+        under(&before) - lowest > 0.01,
         "the block's top under the capsule went from {} to at lowest {lowest} m",
         under(&before)
     );
