@@ -636,23 +636,8 @@ fn a_frame_that_folds_a_cell_is_taken_again_at_more_substeps() {
     .unwrap();
     let scene = "[output]\npath = \"out.pc2\"\nframes = 72\n[world]\nfloor = 0.0\n\
                  [[body]]\nsource = \"cylinder.obj\"\nmaterial = \"jelly\"\n";
-    std::fs::write(dir.path().join("jelly.toml"), scene).unwrap();
-    let out = support::springbake_in(
-        dir.path(),
-        &[
-            "bake",
-            "jelly.toml",
-            "--progress",
-            "quiet",
-            "--report",
-            "r.json",
-        ],
-    );
-    support::succeeded(&out);
-    let err = stderr(&out);
+    let (err, report) = support::bake_scene_reporting(dir.path(), "jelly.toml", scene);
     assert!(!err.contains("inverted"), "{err}");
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).unwrap()).unwrap();
     let frames = report["frames"].as_array().unwrap();
     let redone: Vec<&serde_json::Value> = (frames.iter())
         .filter(|f| f["redone"].as_u64() > Some(0))
@@ -887,27 +872,13 @@ fn a_tumbling_rubber_cube_never_leaves_a_bounce_with_more_energy() {
     .unwrap();
     let scene = "[output]\npath = \"out.pc2\"\nframes = 96\n[world]\nfloor = 0.0\n\
                  [[body]]\nsource = \"cube.obj\"\nmaterial = \"rubber\"\ncells = 10\n";
-    std::fs::write(dir.path().join("tumble.toml"), scene).unwrap();
-    let o = support::springbake_in(
-        dir.path(),
-        &[
-            "bake",
-            "tumble.toml",
-            "--report",
-            "report.json",
-            "--progress",
-            "quiet",
-        ],
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, report) = support::bake_scene_reporting(dir.path(), "tumble.toml", scene);
     // The cube's lowest corner per frame, from the point cache.
     let pc2 = std::fs::read(dir.path().join("out.pc2")).unwrap();
     let lowest: Vec<f32> = support::pc2_frames(&pc2)
         .iter()
         .map(|corners| corners.iter().map(|p| p[1]).fold(f32::MAX, f32::min))
         .collect();
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
     let frames = report["frames"].as_array().unwrap();
     let at = |f: &serde_json::Value, key: &str| f[key].as_f64().unwrap();
     let floor = frames

@@ -98,19 +98,8 @@ fn an_inline_superquadric_source_bakes() {
           { center = [0.0, 0.6, 0.0], radii = [0.25, 0.2, 0.2] },\n\
           { center = [0.25, 0.75, 0.0], radii = [0.12, 0.12, 0.12], exponents = [0.3, 0.3] },\n\
         ] }\n";
-    std::fs::write(d.join("blob.toml"), scene).unwrap();
-    let bake = [
-        "bake",
-        "blob.toml",
-        "--report",
-        "report.json",
-        "--progress",
-        "quiet",
-    ];
-    succeeded(&springbake_in(d, &bake));
+    let (_, report) = support::bake_scene_reporting(d, "blob.toml", scene);
     assert_gltf_valid(&d.join("blob.glb"));
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("report.json")).unwrap()).unwrap();
     let frames = report["frames"].as_array().unwrap();
     let at = |f: usize, key: &str| frames[f][key].as_f64().unwrap();
     assert!(

@@ -293,21 +293,7 @@ body = "ball"
 on = { time = 0.5 }
 procedure = { stop_emitter = "jet" }
 "#;
-    std::fs::write(d.join("ev.toml"), scene).unwrap();
-    let out = springbake_in(
-        d,
-        &[
-            "bake",
-            "ev.toml",
-            "--progress",
-            "quiet",
-            "--report",
-            "r.json",
-        ],
-    );
-    succeeded(&out);
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("r.json")).unwrap()).unwrap();
+    let (_, report) = support::bake_scene_reporting(d, "ev.toml", scene);
     let landing = report["events"]
         .as_array()
         .unwrap()

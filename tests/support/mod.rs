@@ -72,6 +72,21 @@ pub fn bake_scene(dir: &Path, file: &str, scene: &str) -> String {
     stderr(&out)
 }
 
+/// Writes `scene` to `dir/file`, bakes it quietly with a JSON report; panics with the CLI's
+/// stderr if it fails, else returns that stderr and the report.
+pub fn bake_scene_reporting(dir: &Path, file: &str, scene: &str) -> (String, serde_json::Value) {
+    std::fs::write(dir.join(file), scene).expect("write the scene");
+    let report = "report.json";
+    let out = springbake_in(
+        dir,
+        &["bake", file, "--progress", "quiet", "--report", report],
+    );
+    succeeded(&out);
+    let bytes = std::fs::read(dir.join(report)).expect("the report");
+    let report = serde_json::from_slice(&bytes).expect("the report is JSON");
+    (stderr(&out), report)
+}
+
 /// Bakes `input` in `dir` to `output` for `frames` frames, quietly; panics with the CLI's
 /// stderr if it fails, else returns that stderr (its notes).
 pub fn bake_file(dir: &Path, input: &str, output: &str, frames: &str) -> String {
