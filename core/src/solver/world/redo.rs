@@ -80,12 +80,11 @@ impl World {
     /// Whether the frame that started at `start` and ended here (with `inverted` cells) is
     /// taken again: it folded a cell, ending with more inverted than it started with, or it
     /// crowded one, pressing a corner past [`xpbd::CROWDED_J`] where none was at its start.
-    pub(super) fn spoiled_since(&self, start: &World, inverted: usize) -> bool {
-        // The copy holds no cells (`FrameStatic`): its positions are measured on this world's.
-        let crowded =
-            |x: &[Vector3<f64>]| xpbd::most_collapsed(self, x).is_some_and(|j| j < xpbd::CROWDED_J);
+    pub(super) fn spoiled_since(&mut self, start: &World, inverted: usize) -> bool {
+        let crowded = |ratio: Option<f64>| ratio.is_some_and(|j| j < xpbd::CROWDED_J);
         (inverted > 0 && inverted > start.inverted_cells())
-            || (crowded(&self.nodes.position) && !crowded(&start.nodes.position))
+            || (crowded(xpbd::most_collapsed_now(self))
+                && !crowded(xpbd::most_collapsed_in_copy(self, start)))
     }
 
     /// The fastest node or capsule now, m/s.

@@ -173,6 +173,9 @@ pub(crate) struct Model {
     glue: Glue,
     /// The substeps' doublings for cells near collapse (`crowding`).
     crowding: Crowding,
+    /// The last measure of the cells' most collapsed corner and the positions it was made
+    /// at ([`World::position_key`]; [`most_collapsed_now`]).
+    collapse_memo: Option<((u64, u64), f64)>,
     /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
     held: held::Held,
     /// Each body's impact and the substeps it keeps through it (`impacts`).
@@ -358,6 +361,7 @@ impl Model {
             restitution: Restitution::build(world),
             glue: Glue::default(),
             crowding: Crowding::default(),
+            collapse_memo: None,
             held,
             impacts: ImpactHold::default(),
         }
@@ -600,11 +604,37 @@ pub(crate) fn put_cells(world: &mut World, cells: CellSet) {
     }
 }
 
-/// The smallest corner volume ratio of any of `world`'s cells at node positions `x` (`None`
-/// before the model is built).
-pub(crate) fn most_collapsed(world: &World, x: &[V3]) -> Option<f64> {
-    let model = world.xpbd.as_ref()?;
-    Some(model.cells.most_collapsed(x))
+/// The smallest corner volume ratio of any of `world`'s cells at its positions now (`None`
+/// before the model is built). The measure is kept with the positions it was made at, so a
+/// frame's end and the next frame's start share one, and so do a frame's start and the copy
+/// a frame is taken again from ([`most_collapsed_in_copy`]).
+pub(crate) fn most_collapsed_now(world: &mut World) -> Option<f64> {
+    let key = world.position_key();
+    let model = world.xpbd.as_mut()?;
+    match model.collapse_memo {
+        Some((at, ratio)) if at == key => Some(ratio),
+        _ => {
+            let ratio = model.cells.most_collapsed(&world.nodes.position);
+            model.collapse_memo = Some((key, ratio));
+            Some(ratio)
+        }
+    }
+}
+
+/// [`most_collapsed_now`] of `copy`, a copy of `world` that holds no cells: the measure the
+/// copy kept for its positions, else one made on `world`'s cells.
+pub(crate) fn most_collapsed_in_copy(world: &World, copy: &World) -> Option<f64> {
+    let kept = copy.xpbd.as_ref().and_then(|m| m.collapse_memo);
+    match kept {
+        Some((at, ratio)) if at == copy.position_key() => Some(ratio),
+        _ => Some(
+            world
+                .xpbd
+                .as_ref()?
+                .cells
+                .most_collapsed(&copy.nodes.position),
+        ),
+    }
 }
 
 /// Keep a frame's doubling for the frames after it ([`crowding::Crowding::raise`]): the frame
@@ -621,9 +651,12 @@ pub(crate) fn hold_doubling(world: &mut World) {
 /// module), at most `cap`; `None` when that is not more than `n`.
 fn crowded_substeps(world: &mut World, n: f64, cap: f64) -> Option<f64> {
     let measured = world.device_census_now().map(|c| c.most_collapsed);
-    let (time, x) = (world.time, &world.nodes.position);
+    let ratio = match measured {
+        Some(ratio) => ratio,
+        None => most_collapsed_now(world)?,
+    };
+    let time = world.time;
     let model = world.xpbd.as_mut()?;
-    let ratio = measured.unwrap_or_else(|| model.cells.most_collapsed(x));
     let max_level = (cap / n).log2().ceil().max(0.0) as u32;
     let level = model.crowding.update(time, ratio, max_level);
     let crowded = (n * f64::from(1u32 << level)).min(cap);
