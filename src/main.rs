@@ -56,12 +56,18 @@ enum Command {
         /// Output frames per second.
         #[arg(long)]
         fps: Option<f64>,
-        /// Lattice cells along the longest side (bare meshes).
+        /// Lattice cells along the longest side (a bare mesh; a scene file sets `cells` per body).
         #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
         cells: Option<u32>,
-        /// Material preset for bare meshes: jelly, soft_rubber, rubber, foam, wood, steel.
+        /// Material preset for a bare mesh: jelly, soft_rubber, rubber, foam, wood, steel (a scene
+        /// file sets `material` per body).
         #[arg(long)]
         material: Option<String>,
+        /// Metres per unit of a bare mesh's numbers, over what the file says (glTF and OBJ:
+        /// 1; USD: the stage's metersPerUnit): 0.01 for a model made in centimetres and
+        /// written as metres. The baked frames keep the file's units.
+        #[arg(long, value_name = "METRES")]
+        meters_per_unit: Option<f64>,
         /// Write per-frame diagnostics (energies, inverted cells, penetration, substeps) as JSON,
         /// or, for a .html file, a page with the flipbook, plots over time and the warnings
         /// explained (self-contained: opens offline).
@@ -235,6 +241,7 @@ fn run(command: Command) -> Result<(), Failure> {
             fps,
             cells,
             material,
+            meters_per_unit,
             report,
             max_memory,
             progress,
@@ -248,6 +255,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 fps,
                 cells,
                 material,
+                meters_per_unit,
                 device,
                 cache,
             };

@@ -504,6 +504,11 @@ pub struct BodySection {
     /// Alternatively, the cell edge in metres.
     #[serde(default)]
     pub cell_size: Option<f64>,
+    /// Metres per unit of the source's numbers, over what the file says (glTF and OBJ: 1;
+    /// USD: the stage's `metersPerUnit`): 0.01 for a model made in centimetres and written
+    /// as metres. The baked frames keep the source's units.
+    #[serde(default)]
+    pub meters_per_unit: Option<f64>,
     #[serde(default)]
     pub material: MaterialSpec,
     /// Moves the mesh before simulating (source units, world frame).
@@ -570,6 +575,7 @@ impl BodySection {
             source: SourceSpec::File(source.into()),
             cells: None,
             cell_size: None,
+            meters_per_unit: None,
             material: MaterialSpec::default(),
             offset: [0.0; 3],
             velocity: [0.0; 3],

@@ -182,11 +182,17 @@ pub fn large_output_note(prepared: &Prepared, scene: &SceneFile, output: &Path) 
 /// Bodies smaller than this (largest lattice side, metres) get a note: usually a unit slip
 /// (a centimetre USD stage, a millimetre CAD export), not a 3 cm prop.
 pub const SMALL_BODY_M: f64 = 0.05;
+/// Bodies larger than this get a note too: usually the other slip (a model made in
+/// centimetres or millimetres written as metres: Blender's USD export of a centimetre scene
+/// writes its numbers with `metersPerUnit = 1`), not a 10 m soft body.
+pub const LARGE_BODY_M: f64 = 10.0;
 
-/// A note per body smaller than [`SMALL_BODY_M`]: its size in metres and the unit the
-/// source was read in, so a unit slip is seen before the bake rather than after.
-pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
+/// A note per body smaller than [`SMALL_BODY_M`] or larger than [`LARGE_BODY_M`]: its size in
+/// metres and the unit the source was read in, so a unit slip is seen before the bake rather
+/// than after (a large one as the slow fall it gives).
+pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
     let unit = prepared.export_scene.meters_per_unit;
+    let gravity = prepared.world.settings.gravity.norm();
     prepared
         .bodies
         .iter()
@@ -197,15 +203,34 @@ pub fn small_body_notes(prepared: &Prepared) -> Vec<String> {
                 .iter()
                 .map(|&d| f64::from(d) * b.lattice.cell_size)
                 .fold(0.0, f64::max);
-            (size > 0.0 && size < SMALL_BODY_M).then(|| {
-                format!(
+            if size > 0.0 && size < SMALL_BODY_M {
+                Some(format!(
                     "body \"{}\" is {:.1} cm across (the source's unit is {unit} m): it is \
                      simulated at that real size; if it should be bigger, scale it in the source \
-                     (or set the stage's metersPerUnit)",
+                     or give its unit (`meters_per_unit` on the body, `--meters-per-unit` for a \
+                     bare mesh)",
                     b.name,
                     size * 100.0
-                )
-            })
+                ))
+            } else if size > LARGE_BODY_M {
+                let fall = if gravity > 0.0 {
+                    format!(
+                        ", and falling its own height takes {:.1} s",
+                        (2.0 * size / gravity).sqrt()
+                    )
+                } else {
+                    String::new()
+                };
+                Some(format!(
+                    "body \"{}\" is {size:.1} m across (the source's unit is {unit} m): it is \
+                     simulated at that real size{fall}; if it was made in centimetres or \
+                     millimetres, give its unit (`meters_per_unit = 0.01` on the body, \
+                     `--meters-per-unit 0.01` for a bare mesh) or scale it in the source",
+                    b.name,
+                ))
+            } else {
+                None
+            }
         })
         .collect()
 }

@@ -262,6 +262,12 @@ pub fn load_input(input: &Path, overrides: &MeshOverrides) -> Result<LoadedScene
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let loaded = if is_scene {
+        if let Some((flag, key)) = overrides.mesh_only() {
+            return Err(PipelineError::Usage(format!(
+                "{}: {flag} is for a bare mesh; in a scene file set `{key}` on each [[body]]",
+                input.display()
+            )));
+        }
         let mut loaded = load_scene(input)?;
         let cwd = std::env::current_dir().unwrap_or_default();
         overrides.apply_to(&mut loaded.scene, &cwd);
@@ -319,6 +325,13 @@ pub fn validate_scene(scene: &SceneFile) -> Result<(), String> {
                 return Err(format!("body[{i}].cell_size must be positive, got {h}"));
             }
         }
+        if let Some(u) = b.meters_per_unit {
+            if !(u.is_finite() && (1e-6..=1e6).contains(&u)) {
+                return Err(format!(
+                    "body[{i}].meters_per_unit must be between 1e-6 and 1e6 (0.01 for centimetres, 0.001 for millimetres), got {u}"
+                ));
+            }
+        }
         b.material
             .resolve()
             .map_err(|e| format!("body[{i}].material: {e}"))?;
@@ -374,6 +387,8 @@ pub struct MeshOverrides {
     pub fps: Option<f64>,
     pub cells: Option<u32>,
     pub material: Option<String>,
+    /// `--meters-per-unit`: the source's unit, over what the file says.
+    pub meters_per_unit: Option<f64>,
     /// `--device`: where the solver runs, over the scene's `[solver] device`.
     pub device: Option<springbake_core::scene::DeviceSpec>,
     /// `--cache`: how a glTF output stores the motion, over the scene's `[output] cache`.
@@ -381,6 +396,22 @@ pub struct MeshOverrides {
 }
 
 impl MeshOverrides {
+    /// The first flag given that only a bare mesh takes (a scene file sets it per body), and
+    /// the body key that does the same.
+    pub fn mesh_only(&self) -> Option<(&'static str, &'static str)> {
+        [
+            (self.cells.is_some(), "--cells", "cells"),
+            (self.material.is_some(), "--material", "material"),
+            (
+                self.meters_per_unit.is_some(),
+                "--meters-per-unit",
+                "meters_per_unit",
+            ),
+        ]
+        .into_iter()
+        .find_map(|(given, flag, key)| given.then_some((flag, key)))
+    }
+
     /// The command line's `output` (relative to `folder`), `frames`, `fps`, `cache` and
     /// `device` over a scene's own `[output]` and `[solver]`.
     pub fn apply_to(&self, scene: &mut SceneFile, folder: &Path) {
@@ -424,6 +455,7 @@ pub fn default_scene_for_mesh(mesh: &Path, o: &MeshOverrides) -> LoadedScene {
             .clone()
             .map(MaterialSpec::Preset)
             .unwrap_or_default(),
+        meters_per_unit: o.meters_per_unit,
         ..BodySection::new(mesh)
     });
     LoadedScene {
@@ -609,7 +641,7 @@ pub fn bake(
         for text in budget::through_plane_notes(&prepared) {
             note(&text);
         }
-        for text in budget::small_body_notes(&prepared) {
+        for text in budget::body_size_notes(&prepared) {
             note(&text);
         }
         for text in budget::interpenetrating_parts_notes(&mut prepared) {

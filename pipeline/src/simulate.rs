@@ -97,7 +97,11 @@ fn import_all(
                 source_path: path.clone(),
                 message,
             })?;
-        scenes.push(importer.import(&path, &bytes, &loaded.import_settings_for(body))?);
+        let mut scene = importer.import(&path, &bytes, &loaded.import_settings_for(body))?;
+        if let Some(unit) = body.meters_per_unit {
+            scene.meters_per_unit = unit;
+        }
+        scenes.push(scene);
     }
     Ok(scenes)
 }

@@ -58,10 +58,7 @@ fn bake<'py>(
         output,
         frames,
         fps,
-        cells: None,
-        material: None,
-        device: None,
-        cache: None,
+        ..MeshOverrides::default()
     };
     let loaded = if scene.is_instance_of::<PyDict>() {
         scene_of_dict(py, scene, base_dir, &overrides)?
