@@ -357,6 +357,22 @@ fn output_lines(outputs: &[PathBuf]) -> Vec<String> {
         .collect()
 }
 
+/// `outputs` on one line: all of them up to three, else the first two, an ellipsis, the last
+/// and the count (a point cache per body of a 48-part kit is 48 files).
+fn listed(outputs: &[String]) -> String {
+    match outputs {
+        [] => "nothing written".into(),
+        [first, .., last] if outputs.len() > 3 => {
+            format!(
+                "{first}, {}, …, {last} ({} files)",
+                outputs[1],
+                outputs.len()
+            )
+        }
+        _ => outputs.join(", "),
+    }
+}
+
 fn is_html(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
@@ -516,15 +532,14 @@ fn run_bake(
     let r = &outcome.report;
     let nodes: usize = r.bodies.iter().map(|b| b.nodes).sum();
     let inverted = r.frames.iter().map(|f| f.inverted_cells).max().unwrap_or(0);
-    for out in output_lines(&outcome.outputs) {
-        println!(
-            "baked {} frames of {} bodies ({nodes} nodes) in {:.2} s (simulate {:.2} s): {out}",
-            r.frames.len(),
-            r.bodies.len(),
-            r.seconds.import + r.seconds.fit + r.seconds.simulate + r.seconds.export,
-            r.seconds.simulate,
-        );
-    }
+    println!(
+        "baked {} frames of {} bodies ({nodes} nodes) in {:.2} s (simulate {:.2} s): {}",
+        r.frames.len(),
+        r.bodies.len(),
+        r.seconds.import + r.seconds.fit + r.seconds.simulate + r.seconds.export,
+        r.seconds.simulate,
+        listed(&output_lines(&outcome.outputs)),
+    );
     if let Some(note) = redone_note(&r.frames) {
         eprintln!("springbake: note: {note}");
     }

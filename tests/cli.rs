@@ -929,6 +929,53 @@ fn a_mesh_coarser_than_its_lattice_is_named_before_the_bake() {
     assert!(!err.contains("coarse mesh"), "{err}");
 }
 
+/// A kit of many coarse parts gets one note naming a few and counting the rest, not one per
+/// part, and the bake's line names its first and last point caches and how many there are.
+#[test]
+fn many_coarse_parts_share_one_note_and_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut obj = String::new();
+    for part in 0..5u32 {
+        let x = 0.5 * f64::from(part);
+        let (points, triangles) =
+            springbake_core::shapes::box_mesh([x, 0.5, 0.0], [x + 0.3, 0.8, 0.3]);
+        obj += &format!("o Part{part}\n");
+        for p in &points {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        let first = 1 + 8 * part;
+        for [a, b, c] in triangles {
+            obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
+        }
+    }
+    std::fs::write(dir.path().join("kit.obj"), obj).unwrap();
+    let o = support::springbake_in(
+        dir.path(),
+        &[
+            "bake",
+            "kit.obj",
+            "-o",
+            "kit.pc2",
+            "--frames",
+            "2",
+            "--progress",
+            "quiet",
+        ],
+    );
+    let said = support::succeeded(&o);
+    let err = stderr(&o);
+    assert_eq!(err.matches("coarse mesh").count(), 1, "{err}");
+    assert!(
+        err.contains("5 bodies have a coarse mesh for their lattice (\"Part0\", \"Part1\", \"Part2\" and 2 more)"),
+        "{err}"
+    );
+    assert_eq!(said.lines().count(), 1, "{said}");
+    assert!(
+        said.contains("kit_Part0.pc2, kit_Part1.pc2, …, kit_Part4.pc2 (5 files)"),
+        "{said}"
+    );
+}
+
 /// The annotated example (README, docs/scene.md) bakes without a warning or a note that its
 /// mesh is too coarse, and shows what it is for: the capsule's dent in the face it hits,
 /// which bows by centimetres (an 8-vertex cube's face would stay flat).

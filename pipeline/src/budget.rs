@@ -308,7 +308,9 @@ pub const COARSE_FACE_CELLS: f64 = 2.0;
 pub fn coarse_mesh_notes(prepared: &mut Prepared, scene: &SceneFile) -> Vec<String> {
     use springbake_core::scene::{BodyKind, ModelKind};
     let held = prepared.world.held_bodies();
-    (0..prepared.bodies.len())
+    // Per coarse body: its name, the share of its surface in coarse faces, and the most
+    // cells a face's edge spans.
+    let coarse: Vec<(String, f64, f64)> = (0..prepared.bodies.len())
         .filter_map(|b| {
             let body = &prepared.bodies[b];
             let section = scene.body.get(body.section)?;
@@ -334,21 +336,45 @@ pub fn coarse_mesh_notes(prepared: &mut Prepared, scene: &SceneFile) -> Vec<Stri
                     coarse += size;
                 }
             }
-            (area > 0.0 && coarse >= 0.5 * area).then(|| {
+            (area > 0.0 && coarse >= 0.5 * area)
+                .then(|| (body.name.clone(), 100.0 * coarse / area, longest))
+        })
+        .collect();
+    let why = "and a face stays flat whatever the cells between its corners do, so dents, \
+               bulges and bends inside it will not show; subdivide the mesh before export to \
+               see them (in Blender a Subdivision Surface modifier, Simple, applied), or use \
+               fewer cells to bake the same look faster";
+    if coarse.len() <= MAX_NAMED_BODIES {
+        return coarse
+            .iter()
+            .map(|(name, share, longest)| {
                 format!(
-                    "body \"{}\" has a coarse mesh for its lattice: {:.0} % of its surface is \
-                     in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells (up to \
-                     {longest:.1}), and a face stays flat whatever the cells between its \
-                     corners do, so dents, bulges and bends inside it will not show; subdivide \
-                     the mesh before export to see them (in Blender a Subdivision Surface \
-                     modifier, Simple, applied), or use fewer cells to bake the same look faster",
-                    body.name,
-                    100.0 * coarse / area
+                    "body \"{name}\" has a coarse mesh for its lattice: {share:.0} % of its \
+                     surface is in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells \
+                     (up to {longest:.1}), {why}"
                 )
             })
-        })
-        .collect()
+            .collect();
+    }
+    // Many parts (a kit, a pile): one note, not a screenful of the same one.
+    let least = coarse.iter().map(|c| c.1).fold(f64::MAX, f64::min);
+    let most = coarse.iter().map(|c| c.1).fold(0.0, f64::max);
+    let longest = coarse.iter().map(|c| c.2).fold(0.0, f64::max);
+    let named: Vec<String> = (coarse.iter().take(MAX_NAMED_BODIES))
+        .map(|c| format!("\"{}\"", c.0))
+        .collect();
+    vec![format!(
+        "{} bodies have a coarse mesh for their lattice ({} and {} more): {least:.0}–{most:.0} % \
+         of each one's surface is in faces whose edges span more than {COARSE_FACE_CELLS:.0} \
+         cells (up to {longest:.1}), {why}",
+        coarse.len(),
+        named.join(", "),
+        coarse.len() - named.len()
+    )]
 }
+
+/// Bodies a note names one by one; past this many it names these and counts the rest.
+const MAX_NAMED_BODIES: usize = 3;
 
 /// A body that starts inside a static collider, deeper than the contact layer, is not held
 /// in by it: the collider's faces push only outwards, so the body is thrown out through the
