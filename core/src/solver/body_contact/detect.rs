@@ -477,6 +477,11 @@ pub(super) fn begin_pair(
     })
 }
 
+/// The mesh whose grid the prepared search's list is to be built from in this step, if it is.
+pub(super) fn grid_needed(search: &PairSearch) -> Option<usize> {
+    search.list.is_pending().then_some(search.mesh)
+}
+
 /// Build the prepared search's list if it is to be built, then its vertex–face contacts in
 /// its samples' order into `out`. Reads the contact state only (pairs run side by side).
 pub(super) fn search_pair(

@@ -2,13 +2,19 @@
 //! embedded in the lattice, their vertices, boxes and planes in the step, and the grid the
 //! other bodies' samples query it with.
 //!
-//! The grid holds each triangle's box grown by a margin and is rebuilt only once a vertex has
-//! moved farther than the margin since the last build (a resting or slowly moving body keeps
-//! it for many steps). In a pile of 60 boxes, rebuilding every mesh's grid each step was a
-//! large part of the bake. The triangles' boxes and planes are computed once a step for the
+//! The grid holds each triangle's box grown by a margin, placed where the body was when it was
+//! built and queried shifted by how far the vertices' mean has moved since, so a body that
+//! only translates (falls, slides) keeps its grid. It is read only where a neighbour
+//! list is built, so it is brought up to date only then ([`BodyMesh::ensure_grid`]), and
+//! rebuilt only once a vertex has moved farther than the margin beyond that shift since the
+//! last build (a resting or slowly moving body keeps it for many steps). In a pile of 60 boxes, rebuilding
+//! every mesh's grid each step was a large part of the bake; in a heap of 48 rolling parts
+//! of Blender's (a thousand faces each), checking and rebuilding it every step for every mesh
+//! in reach was a third of it, where the pairs' lists were mostly still good. The triangles' boxes and planes are computed once a step for the
 //! meshes some pair's search reads, meshes side by side ([`super::prepare`]).
 
 use super::*;
+use crate::collide::grid::QueryMarks;
 
 /// A body's display surface for body–body contact.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,9 +46,13 @@ pub(super) struct BodyMesh {
     /// Per triangle: its box and plane in the step `face_stamp` says.
     pub faces: Vec<FaceBox>,
     face_stamp: Vec<u64>,
-    /// The triangles' boxes grown by `margin` at the vertex positions `built_at`.
-    pub grid: BoxGrid,
+    /// The triangles' boxes grown by `margin` at the vertex positions `built_at`, whose mean
+    /// was `built_centre` ([`BodyMesh::query_grid`] shifts a query by how far the mean
+    /// `centre` of this step's vertices has moved since).
+    grid: BoxGrid,
     built_at: Vec<Vector3<f64>>,
+    built_centre: Vector3<f64>,
+    centre: Vector3<f64>,
     margin: f64,
 }
 
@@ -95,12 +105,14 @@ impl BodyMesh {
             v: vec![Vector3::zeros(); n],
             grid: BoxGrid::default(),
             built_at: Vec::new(),
+            built_centre: Vector3::zeros(),
+            centre: Vector3::zeros(),
             margin: GRID_MARGIN_EDGES * mean_edge,
         }
     }
 
-    /// The vertices' positions and velocities in step `stamp` (once a step), and the grid
-    /// rebuilt when a vertex has left its margin.
+    /// The vertices' positions and velocities in step `stamp` (once a step); the grid is
+    /// left to [`BodyMesh::ensure_grid`].
     pub fn update(&mut self, nodes: &NodeState, stamp: u64) {
         if self.stamp == stamp {
             return;
@@ -115,10 +127,18 @@ impl BodyMesh {
             self.x[k] = x;
             self.v[k] = v;
         }
+        let sum = self.x.iter().fold(Vector3::zeros(), |s, x| s + x);
+        self.centre = sum / self.x.len().max(1) as f64;
+    }
+
+    /// The grid rebuilt if a vertex has left its margin since it was built (at the
+    /// vertices of this step's [`BodyMesh::update`]), before a neighbour list is built from it.
+    pub fn ensure_grid(&mut self) {
         let moved = if self.built_at.len() == self.x.len() {
             let m2 = self.margin * self.margin;
+            let shift = self.centre - self.built_centre;
             let far = |(x, b): (&Vector3<f64>, &Vector3<f64>)| {
-                let d2 = (x - b).norm_squared();
+                let d2 = (x - shift - b).norm_squared();
                 d2.is_nan() || d2 > m2
             };
             self.x.iter().zip(&self.built_at).any(far)
@@ -138,6 +158,7 @@ impl BodyMesh {
     /// The grid over the triangles' boxes at the vertices' positions now, grown by the margin.
     fn build_grid(&mut self) {
         self.built_at.clone_from(&self.x);
+        self.built_centre = self.centre;
         let (x, m) = (&self.x, self.margin);
         let grown = |t: &[u32; 3]| {
             let [p, q, r] = t.map(|i| x[i as usize]);
@@ -161,6 +182,19 @@ impl BodyMesh {
         });
         self.grid
             .build(lo, hi, self.mean_edge, self.triangles.len(), boxes);
+    }
+
+    /// The ids of the triangles whose grown boxes may meet `[lo, hi]` (this step's
+    /// positions), each once, into `out` ([`BoxGrid::query_marked`]).
+    pub fn query_grid(
+        &self,
+        (lo, hi): (&Vector3<f64>, &Vector3<f64>),
+        out: &mut Vec<u32>,
+        marks: &mut QueryMarks,
+    ) {
+        let shift = self.centre - self.built_centre;
+        self.grid
+            .query_marked(&(lo - shift), &(hi - shift), out, marks);
     }
 
     /// Every triangle's box, plane and speed in this step.

@@ -623,7 +623,27 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             stencils: None,
         });
     }
+    grids_for_lists(bc, &out);
     out
+}
+
+/// The grids of the meshes a list is to be built from in this step, up to date (meshes side
+/// by side: each task writes only its own).
+fn grids_for_lists(bc: &mut BodyContact, pairs: &[PairSearches]) {
+    let mut needed = std::mem::take(&mut bc.mesh_needed);
+    needed.clear();
+    needed.resize(bc.meshes.len(), false);
+    for search in pairs.iter().flat_map(|p| p.searches.iter().flatten()) {
+        if let Some(m) = detect::grid_needed(search) {
+            needed[m] = true;
+        }
+    }
+    team::for_each(Chunks::new(&mut bc.meshes, 1), |m, mesh| {
+        if needed[m] {
+            mesh[0].ensure_grid();
+        }
+    });
+    bc.mesh_needed = needed;
 }
 
 /// The vertex–face contacts of each pair's searches (`a`'s samples first), then its

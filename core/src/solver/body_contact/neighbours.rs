@@ -293,8 +293,7 @@ pub(super) fn build(
             continue;
         }
         let (qlo, qhi) = (x.add_scalar(-range), x.add_scalar(range));
-        mesh.grid
-            .query_marked(&qlo, &qhi, &mut candidates, &mut list.marks);
+        mesh.query_grid((&qlo, &qhi), &mut candidates, &mut list.marks);
         ranked.clear();
         ranked.extend(candidates.iter().filter_map(|&t| {
             let bound = faces.distance_bound(t as usize, &x);
@@ -310,6 +309,14 @@ pub(super) fn build(
         list.samples.push((i as u32, list.faces.len() as u32));
     }
     (list.candidates, list.ranked) = (candidates, ranked);
+}
+
+impl FaceList {
+    /// Whether [`take`] left it to be built in this step: [`build`] will query the mesh's
+    /// grid ([`BodyMesh::ensure_grid`]).
+    pub fn is_pending(&self) -> bool {
+        self.pending.is_some()
+    }
 }
 
 /// Return the list of `a`'s samples against `b` to the table.
