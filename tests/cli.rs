@@ -929,14 +929,11 @@ fn a_mesh_coarser_than_its_lattice_is_named_before_the_bake() {
     assert!(!err.contains("coarse mesh"), "{err}");
 }
 
-/// A kit of many coarse parts gets one note naming a few and counting the rest, not one per
-/// part, and the bake's line names its first and last point caches and how many there are.
-#[test]
-fn many_coarse_parts_share_one_note_and_one_line() {
-    let dir = tempfile::tempdir().unwrap();
+/// Five boxes side by side as one OBJ, each `step` metres from the last (0.3 m wide).
+fn row_of_boxes(step: f64) -> String {
     let mut obj = String::new();
     for part in 0..5u32 {
-        let x = 0.5 * f64::from(part);
+        let x = step * f64::from(part);
         let (points, triangles) =
             springbake_core::shapes::box_mesh([x, 0.5, 0.0], [x + 0.3, 0.8, 0.3]);
         obj += &format!("o Part{part}\n");
@@ -948,7 +945,15 @@ fn many_coarse_parts_share_one_note_and_one_line() {
             obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
         }
     }
-    std::fs::write(dir.path().join("kit.obj"), obj).unwrap();
+    obj
+}
+
+/// A kit of many coarse parts gets one note naming a few and counting the rest, not one per
+/// part, and the bake's line names its first and last point caches and how many there are.
+#[test]
+fn many_coarse_parts_share_one_note_and_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("kit.obj"), row_of_boxes(0.5)).unwrap();
     let o = support::springbake_in(
         dir.path(),
         &[
@@ -969,10 +974,24 @@ fn many_coarse_parts_share_one_note_and_one_line() {
         err.contains("5 bodies have a coarse mesh for their lattice (\"Part0\", \"Part1\", \"Part2\" and 2 more)"),
         "{err}"
     );
+    assert!(!err.contains("interpenetrate"), "{err}");
     assert_eq!(said.lines().count(), 1, "{said}");
     assert!(
         said.contains("kit_Part0.pc2, kit_Part1.pc2, …, kit_Part4.pc2 (5 files)"),
         "{said}"
+    );
+}
+
+/// Many pairs of parts modelled inside each other get one note, as many coarse parts do.
+#[test]
+fn many_interpenetrating_pairs_share_one_note() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("kit.obj"), row_of_boxes(0.2)).unwrap();
+    let err = support::bake_file(dir.path(), "kit.obj", "kit.pc2", "2");
+    assert_eq!(err.matches("interpenetrate").count(), 1, "{err}");
+    assert!(
+        err.contains("4 pairs of bodies interpenetrate at the start (\"Part0\" and \"Part1\", \"Part1\" and \"Part2\", \"Part2\" and \"Part3\" and 1 more): they are glued"),
+        "{err}"
     );
 }
 

@@ -239,22 +239,37 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
 /// colliding with each other, and flexible ones are glued where they overlap (the XPBD
 /// solver's glue): name them, so a user who meant them to collide knows to move them apart.
 pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
-    prepared
-        .world
-        .interpenetrating_parts()
-        .into_iter()
-        .map(|(a, b, glued)| {
-            let what = if glued {
-                "they are glued where they overlap and do not collide with each other"
-            } else {
-                "they do not collide with each other; a rigid or particle body is not glued"
-            };
-            format!(
-                "bodies \"{a}\" and \"{b}\" interpenetrate at the start: {what} (move them \
-                 apart to make them collide)"
-            )
-        })
-        .collect()
+    let pairs = prepared.world.interpenetrating_parts();
+    let mut notes = Vec::new();
+    for glued in [true, false] {
+        let what = if glued {
+            "they are glued where they overlap and do not collide with each other"
+        } else {
+            "they do not collide with each other; a rigid or particle body is not glued"
+        };
+        let named: Vec<String> = (pairs.iter())
+            .filter(|p| p.2 == glued)
+            .map(|(a, b, _)| format!("\"{a}\" and \"{b}\""))
+            .collect();
+        let fix = "move them apart to make them collide";
+        if named.len() <= MAX_NAMED_BODIES {
+            notes.extend(
+                named.iter().map(|pair| {
+                    format!("bodies {pair} interpenetrate at the start: {what} ({fix})")
+                }),
+            );
+        } else {
+            // A kit modelled touching: one note, not a screenful.
+            notes.push(format!(
+                "{} pairs of bodies interpenetrate at the start ({} and {} more): {what} \
+                 ({fix})",
+                named.len(),
+                named[..MAX_NAMED_BODIES].join(", "),
+                named.len() - MAX_NAMED_BODIES
+            ));
+        }
+    }
+    notes
 }
 
 /// Bodies the XPBD solver holds rigid because their material is far too stiff for their
@@ -363,10 +378,15 @@ pub fn coarse_mesh_notes(prepared: &mut Prepared, scene: &SceneFile) -> Vec<Stri
     let named: Vec<String> = (coarse.iter().take(MAX_NAMED_BODIES))
         .map(|c| format!("\"{}\"", c.0))
         .collect();
+    let share = if format!("{least:.0}") == format!("{most:.0}") {
+        format!("{most:.0} %")
+    } else {
+        format!("{least:.0}–{most:.0} %")
+    };
     vec![format!(
-        "{} bodies have a coarse mesh for their lattice ({} and {} more): {least:.0}–{most:.0} % \
-         of each one's surface is in faces whose edges span more than {COARSE_FACE_CELLS:.0} \
-         cells (up to {longest:.1}), {why}",
+        "{} bodies have a coarse mesh for their lattice ({} and {} more): {share} of each \
+         one's surface is in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells (up \
+         to {longest:.1}), {why}",
         coarse.len(),
         named.join(", "),
         coarse.len() - named.len()
