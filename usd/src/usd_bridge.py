@@ -727,7 +727,9 @@ def write_new_stage(out_path, spec):
         xform_path = "/root/" + item["name"]
         xform = UsdGeom.Xform.Define(stage, xform_path)
         xform.AddTransformOp().Set(_matrix_from_bytes(item["world"]))
-        location = xform_path + "/mesh"
+        # The mesh prim takes the object's name too: Blender's importer names the object it
+        # makes of an Xform and its one Mesh after the Mesh, as it does its own exports'.
+        location = xform_path + "/" + item["name"]
         mesh = UsdGeom.Mesh.Define(stage, location)
         mesh.CreateSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
         mesh.CreateFaceVertexCountsAttr().Set(_int_array(item["counts"]))

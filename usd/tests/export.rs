@@ -229,7 +229,7 @@ fn non_usd_source_builds_a_new_stage_with_world_matrix_and_samples() {
         let meshes = json["meshes"].as_object().unwrap();
         assert_eq!(meshes.len(), 1);
         let (path, m) = meshes.iter().next().unwrap();
-        assert_eq!(path, "/root/Blob_001/mesh");
+        assert_eq!(path, "/root/Blob_001/Blob_001");
         // usd-core's world transform (transposed to column vectors) equals ours.
         let world = f64s(&m["world"]);
         let ours = scene.meshes[0].world_from_local;
@@ -283,6 +283,35 @@ fn bad_bakes_are_rejected_before_writing() {
         axes: Default::default(),
     };
     assert!(UsdExporter.export(&scene, &baked, &other).is_err());
+}
+
+/// A stage made from a glTF source opens in Blender with the artist's object names (the
+/// glTF nodes', as prim names), not one `mesh`, `mesh.001`, … per body.
+#[test]
+fn blender_names_the_objects_of_a_stage_made_from_gltf_as_the_source_did() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = synthetic_gltf_scene();
+    let mut ball = scene.meshes[0].clone();
+    (ball.name, ball.source_key) = ("Ball".into(), "node:1".into());
+    scene.meshes.push(ball);
+    let baked = bake(&scene, 2, 24.0);
+    let out = dir.path().join("two.usda");
+    export(&scene, &baked, &out);
+    let spec = serde_json::json!({ "files": [{ "path": out.to_str().unwrap(), "frames": [0] }] });
+    let spec_path = dir.path().join("spec.json");
+    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    let json = last_json_line(&run_python_client(
+        "usd_blender_frames.py",
+        &[spec_path.to_str().unwrap()],
+    ));
+    let mut blender: Vec<String> = json["files"][0]["objects"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .cloned()
+        .collect();
+    blender.sort();
+    assert_eq!(blender, ["Ball", "Blob_001"]);
 }
 
 #[test]
