@@ -1,7 +1,8 @@
 //! Exact small geometric queries for collision detection: the closest point of a triangle,
-//! a segment crossing a triangle, the closest points of two segments.
+//! a segment crossing a triangle, the closest points of two segments; and the rotation of a
+//! polar decomposition (a point set's best-fit turn).
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Closest point of triangle `(a, b, c)` to `p`, as barycentric weights `[wa, wb, wc]`
 /// (Ericson, *Real-Time Collision Detection* §5.1.5), and whether it lies inside the face
@@ -143,9 +144,46 @@ pub fn triangle_normal(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> 
     }
 }
 
+/// Most sweeps the singular value decomposition takes (a 3 × 3 converges in a few; the bound
+/// keeps non-finite input from looping).
+const SVD_SWEEPS: usize = 64;
+
+/// The rotation of the polar decomposition of `a` (a proper rotation: a reflection's sign is
+/// moved to the smallest singular value); `None` when `a` is not finite or does not converge.
+pub fn polar_rotation(a: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    if !a.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let svd = a.try_svd(true, true, f64::EPSILON, SVD_SWEEPS)?;
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut u = u;
+    if (u * v_t).determinant() < 0.0 {
+        // nalgebra sorts singular values in decreasing order: flip the last.
+        let flipped = -u.column(2);
+        u.set_column(2, &flipped);
+    }
+    Some(u * v_t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Rotation3;
+
+    #[test]
+    fn the_polar_rotation_is_proper_and_refuses_what_is_not_finite() {
+        let turn = Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        let stretched = turn * Matrix3::from_diagonal(&Vector3::new(2.0, 0.5, 1.2));
+        let r = polar_rotation(&stretched).unwrap();
+        assert!((r - turn).norm() < 1e-12, "{r}");
+        // A reflection through its thinnest axis: the nearest proper rotation is the turn.
+        let mirrored = turn * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -0.1));
+        let r = polar_rotation(&mirrored).unwrap();
+        assert!((r - turn).norm() < 1e-12, "{r}");
+        let mut broken = stretched;
+        broken[(1, 2)] = f64::NAN;
+        assert!(polar_rotation(&broken).is_none());
+    }
 
     fn tri() -> [Vector3<f64>; 3] {
         [Vector3::zeros(), Vector3::x(), Vector3::y()]

@@ -3,18 +3,22 @@
 //! other bodies' samples query it with.
 //!
 //! The grid holds each triangle's box grown by a margin, placed where the body was when it was
-//! built and queried shifted by how far the vertices' mean has moved since, so a body that
-//! only translates (falls, slides) keeps its grid. It is read only where a neighbour
-//! list is built, so it is brought up to date only then ([`BodyMesh::ensure_grid`]), and
-//! rebuilt only once a vertex has moved farther than the margin beyond that shift since the
-//! last build (a resting or slowly moving body keeps it for many steps). In a pile of 60 boxes, rebuilding
-//! every mesh's grid each step was a large part of the bake; in a heap of 48 rolling parts
-//! of Blender's (a thousand faces each), checking and rebuilding it every step for every mesh
-//! in reach was a third of it, where the pairs' lists were mostly still good. The triangles' boxes and planes are computed once a step for the
-//! meshes some pair's search reads, meshes side by side ([`super::prepare`]).
+//! built. It is queried in that placement: a query box is moved back by the body's best-fit
+//! motion since (the vertices' mean, and the rotation of the polar decomposition of their
+//! spread against the built one's) and grown to hold the turned box, so a body that moves
+//! as a whole (falls, slides, rolls) keeps its grid. It is read only where a neighbour list is
+//! built, so it is brought up to date only then ([`BodyMesh::ensure_grid`]), and rebuilt only
+//! once a vertex, moved back so, lies farther than the margin from where it was built (a body
+//! that deforms). In a pile of 60 boxes, rebuilding every mesh's grid each step was a large
+//! part of the bake; in a heap of 48 of Blender's parts (a thousand faces each), checking
+//! and rebuilding it every step for every mesh in reach was a third of it. The triangles'
+//! boxes and planes are computed once a step for the meshes some pair's search reads, meshes
+//! side by side ([`super::prepare`]).
 
 use super::*;
+use crate::collide::geometry::polar_rotation;
 use crate::collide::grid::QueryMarks;
+use nalgebra::Matrix3;
 
 /// A body's display surface for body–body contact.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,12 +51,14 @@ pub(super) struct BodyMesh {
     pub faces: Vec<FaceBox>,
     face_stamp: Vec<u64>,
     /// The triangles' boxes grown by `margin` at the vertex positions `built_at`, whose mean
-    /// was `built_centre` ([`BodyMesh::query_grid`] shifts a query by how far the mean
-    /// `centre` of this step's vertices has moved since).
+    /// was `built_centre`; `centre` is the mean of this step's vertices and `turn` the
+    /// rotation that best takes the built spread about its mean to theirs, as of the last
+    /// [`BodyMesh::ensure_grid`] ([`BodyMesh::query_grid`] moves a query back by both).
     grid: BoxGrid,
     built_at: Vec<Vector3<f64>>,
     built_centre: Vector3<f64>,
     centre: Vector3<f64>,
+    turn: Matrix3<f64>,
     margin: f64,
 }
 
@@ -107,6 +113,7 @@ impl BodyMesh {
             built_at: Vec::new(),
             built_centre: Vector3::zeros(),
             centre: Vector3::zeros(),
+            turn: Matrix3::identity(),
             margin: GRID_MARGIN_EDGES * mean_edge,
         }
     }
@@ -134,18 +141,21 @@ impl BodyMesh {
     /// The grid rebuilt if a vertex has left its margin since it was built (at the
     /// vertices of this step's [`BodyMesh::update`]), before a neighbour list is built from it.
     pub fn ensure_grid(&mut self) {
-        let moved = if self.built_at.len() == self.x.len() {
-            let m2 = self.margin * self.margin;
-            let shift = self.centre - self.built_centre;
-            let far = |(x, b): (&Vector3<f64>, &Vector3<f64>)| {
-                let d2 = (x - shift - b).norm_squared();
-                d2.is_nan() || d2 > m2
-            };
-            self.x.iter().zip(&self.built_at).any(far)
-        } else {
-            true
+        let kept = self.built_at.len() == self.x.len() && {
+            let (c, c0) = (self.centre, self.built_centre);
+            let spread = (self.x.iter().zip(&self.built_at)).fold(Matrix3::zeros(), |a, (x, b)| {
+                a + (x - c) * (b - c0).transpose()
+            });
+            // Not finite (a vertex gone to NaN) or not converged: rebuilt.
+            polar_rotation(&spread).is_some_and(|turn| {
+                self.turn = turn;
+                let back = turn.transpose();
+                let m2 = self.margin * self.margin;
+                (self.x.iter().zip(&self.built_at))
+                    .all(|(x, b)| (back * (x - c) + c0 - b).norm_squared() <= m2)
+            })
         };
-        if moved {
+        if !kept {
             self.build_grid();
         }
     }
@@ -159,6 +169,7 @@ impl BodyMesh {
     fn build_grid(&mut self) {
         self.built_at.clone_from(&self.x);
         self.built_centre = self.centre;
+        self.turn = Matrix3::identity();
         let (x, m) = (&self.x, self.margin);
         let grown = |t: &[u32; 3]| {
             let [p, q, r] = t.map(|i| x[i as usize]);
@@ -185,16 +196,20 @@ impl BodyMesh {
     }
 
     /// The ids of the triangles whose grown boxes may meet `[lo, hi]` (this step's
-    /// positions), each once, into `out` ([`BoxGrid::query_marked`]).
+    /// positions), each once, into `out` ([`BoxGrid::query_marked`]): the box moved back by
+    /// the body's motion since the grid was built, and grown to the box that holds it turned.
     pub fn query_grid(
         &self,
         (lo, hi): (&Vector3<f64>, &Vector3<f64>),
         out: &mut Vec<u32>,
         marks: &mut QueryMarks,
     ) {
-        let shift = self.centre - self.built_centre;
+        let back = self.turn.transpose();
+        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+        let at = back * (mid - self.centre) + self.built_centre;
+        let reach = back.abs() * half;
         self.grid
-            .query_marked(&(lo - shift), &(hi - shift), out, marks);
+            .query_marked(&(at - reach), &(at + reach), out, marks);
     }
 
     /// Every triangle's box, plane and speed in this step.

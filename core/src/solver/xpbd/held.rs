@@ -32,6 +32,7 @@
 //! material; [`World::under_resolved_bodies`] names them so the CLI can say so.
 
 use super::V3;
+use crate::collide::geometry::polar_rotation;
 use crate::solver::World;
 use nalgebra::Matrix3;
 use std::ops::Range;
@@ -135,7 +136,7 @@ impl Held {
                 a += (position[i] - c) * ((rest[i] - c0) * *w).transpose();
             }
             // Non-finite positions are left for the frame's check to report.
-            let Some(rotation) = rotation_of(&a) else {
+            let Some(rotation) = polar_rotation(&a) else {
                 continue;
             };
             for i in range {
@@ -145,27 +146,6 @@ impl Held {
             }
         }
     }
-}
-
-/// Most sweeps the singular value decomposition takes (a 3 × 3 converges in a few; the bound
-/// keeps non-finite input from looping).
-const SVD_SWEEPS: usize = 64;
-
-/// The rotation of the polar decomposition of `a` (a proper rotation: a reflection's sign is
-/// moved to the smallest singular value); `None` when `a` is not finite or does not converge.
-fn rotation_of(a: &Matrix3<f64>) -> Option<Matrix3<f64>> {
-    if !a.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let svd = a.try_svd(true, true, f64::EPSILON, SVD_SWEEPS)?;
-    let (u, v_t) = (svd.u?, svd.v_t?);
-    let mut u = u;
-    if (u * v_t).determinant() < 0.0 {
-        // nalgebra sorts singular values in decreasing order: flip the last.
-        let flipped = -u.column(2);
-        u.set_column(2, &flipped);
-    }
-    Some(u * v_t)
 }
 
 /// Whether body `b` of `world` is one to hold (module docs): its wave speed if so.
@@ -259,26 +239,5 @@ impl World {
                     .then(|| (body.name.clone(), asked.min(u32::MAX as f64) as u32))
             })
             .collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::Rotation3;
-
-    #[test]
-    fn the_polar_rotation_is_proper_and_refuses_what_is_not_finite() {
-        let turn = Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
-        let stretched = turn * Matrix3::from_diagonal(&V3::new(2.0, 0.5, 1.2));
-        let r = rotation_of(&stretched).unwrap();
-        assert!((r - turn).norm() < 1e-12, "{r}");
-        // A reflection through its thinnest axis: the nearest proper rotation is the turn.
-        let mirrored = turn * Matrix3::from_diagonal(&V3::new(1.0, 1.0, -0.1));
-        let r = rotation_of(&mirrored).unwrap();
-        assert!((r - turn).norm() < 1e-12, "{r}");
-        let mut broken = stretched;
-        broken[(1, 2)] = f64::NAN;
-        assert!(rotation_of(&broken).is_none());
     }
 }
