@@ -261,11 +261,9 @@ pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
         } else {
             // A kit modelled touching: one note, not a screenful.
             notes.push(format!(
-                "{} pairs of bodies interpenetrate at the start ({} and {} more): {what} \
-                 ({fix})",
+                "{} pairs of bodies interpenetrate at the start ({}): {what} ({fix})",
                 named.len(),
-                named[..MAX_NAMED_BODIES].join(", "),
-                named.len() - MAX_NAMED_BODIES
+                first_and_count(&named),
             ));
         }
     }
@@ -375,26 +373,33 @@ pub fn coarse_mesh_notes(prepared: &mut Prepared, scene: &SceneFile) -> Vec<Stri
     let least = coarse.iter().map(|c| c.1).fold(f64::MAX, f64::min);
     let most = coarse.iter().map(|c| c.1).fold(0.0, f64::max);
     let longest = coarse.iter().map(|c| c.2).fold(0.0, f64::max);
-    let named: Vec<String> = (coarse.iter().take(MAX_NAMED_BODIES))
-        .map(|c| format!("\"{}\"", c.0))
-        .collect();
+    let named: Vec<String> = coarse.iter().map(|c| format!("\"{}\"", c.0)).collect();
     let share = if format!("{least:.0}") == format!("{most:.0}") {
         format!("{most:.0} %")
     } else {
         format!("{least:.0}–{most:.0} %")
     };
     vec![format!(
-        "{} bodies have a coarse mesh for their lattice ({} and {} more): {share} of each \
-         one's surface is in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells (up \
-         to {longest:.1}), {why}",
+        "{} bodies have a coarse mesh for their lattice ({}): {share} of each one's surface is \
+         in faces whose edges span more than {COARSE_FACE_CELLS:.0} cells (up to \
+         {longest:.1}), {why}",
         coarse.len(),
-        named.join(", "),
-        coarse.len() - named.len()
+        first_and_count(&named),
     )]
 }
 
 /// Bodies a note names one by one; past this many it names these and counts the rest.
 const MAX_NAMED_BODIES: usize = 3;
+
+/// The first [`MAX_NAMED_BODIES`] of `named`, then how many more: `a, b, c and 45 more`.
+fn first_and_count(named: &[String]) -> String {
+    let shown = &named[..named.len().min(MAX_NAMED_BODIES)];
+    format!(
+        "{} and {} more",
+        shown.join(", "),
+        named.len() - shown.len()
+    )
+}
 
 /// A body that starts inside a static collider, deeper than the contact layer, is not held
 /// in by it: the collider's faces push only outwards, so the body is thrown out through the

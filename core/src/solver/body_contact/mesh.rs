@@ -51,8 +51,8 @@ pub(super) struct BodyMesh {
     pub faces: Vec<FaceBox>,
     face_stamp: Vec<u64>,
     /// The triangles' boxes grown by `margin` at the vertex positions `built_at`, whose mean
-    /// was `built_centre`; `centre` is the mean of this step's vertices and `turn` the
-    /// rotation that best takes the built spread about its mean to theirs, as of the last
+    /// was `built_centre`; `centre` is the mean of the vertices and `turn` the rotation that
+    /// best takes the built spread about its mean to theirs, both as of the last
     /// [`BodyMesh::ensure_grid`] ([`BodyMesh::query_grid`] moves a query back by both).
     grid: BoxGrid,
     built_at: Vec<Vector3<f64>>,
@@ -134,13 +134,13 @@ impl BodyMesh {
             self.x[k] = x;
             self.v[k] = v;
         }
-        let sum = self.x.iter().fold(Vector3::zeros(), |s, x| s + x);
-        self.centre = sum / self.x.len().max(1) as f64;
     }
 
     /// The grid rebuilt if a vertex has left its margin since it was built (at the
     /// vertices of this step's [`BodyMesh::update`]), before a neighbour list is built from it.
     pub fn ensure_grid(&mut self) {
+        let sum = self.x.iter().fold(Vector3::zeros(), |s, x| s + x);
+        self.centre = sum / self.x.len().max(1) as f64;
         let kept = self.built_at.len() == self.x.len() && {
             let (c, c0) = (self.centre, self.built_centre);
             let spread = (self.x.iter().zip(&self.built_at)).fold(Matrix3::zeros(), |a, (x, b)| {
