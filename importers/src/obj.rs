@@ -14,7 +14,10 @@
 //! - an object's vertices are the `v` entries its faces use, *in the order of the file's `v`
 //!   lines* (not the order faces first refer to them); unused `v` entries are dropped; a face
 //!   may use `v` entries written under an earlier object;
-//! - `usemtl` state carries across `o` lines.
+//! - `usemtl` state carries across `o` lines;
+//! - a face corner naming a texture coordinate or normal the file does not have (`f 1/1/1`
+//!   with no `vt` lines: trimesh's test files, hand-edited exports) loses that index and the
+//!   face stays; springbake says so in a note.
 //!
 //! - `l` (polyline) elements add their vertices to the object as loose vertices; `p` elements
 //!   are ignored; a face with a repeated corner is dropped but its vertices stay.
@@ -64,7 +67,8 @@ impl Importer for ObjImporter {
             .root
             .clone()
             .unwrap_or_else(|| path.parent().map(Path::to_path_buf).unwrap_or_default());
-        let (materials, notes) = crate::mtl::read_libraries(path, &doc.mtllibs, &root)?;
+        let (materials, mtl_notes) = crate::mtl::read_libraries(path, &doc.mtllibs, &root)?;
+        let notes = doc.notes.iter().cloned().chain(mtl_notes).collect();
         Ok(ImportedScene {
             materials,
             notes,
@@ -123,6 +127,9 @@ pub struct ObjDocument {
     pub groups: Vec<String>,
     /// Number of `l` and `p` elements (not simulated; see the module doc).
     pub skipped_lines_and_points: usize,
+    /// What was read leniently and the user should hear about (faces naming texture
+    /// coordinates or normals the file does not have).
+    pub notes: Vec<String>,
 }
 
 fn err_at(path: &Path, line: usize, message: impl Into<String>) -> PluginError {
@@ -242,6 +249,56 @@ fn checked_index(
         ));
     }
     Ok(idx as u32)
+}
+
+/// Face corners naming a texture coordinate or normal past the file's last (exporters that
+/// write `f 1/1/1` with no `vt` lines): Blender's importer drops such an index and keeps
+/// the face, and so does this one, with one note for the file.
+struct MissingEntries {
+    what: &'static str,
+    keyword: &'static str,
+    len: usize,
+    /// The first such corner's line and index (0-based), and how many there are.
+    first: Option<(usize, i64)>,
+    count: usize,
+}
+
+impl MissingEntries {
+    fn new(what: &'static str, keyword: &'static str, len: usize) -> Self {
+        MissingEntries {
+            what,
+            keyword,
+            len,
+            first: None,
+            count: 0,
+        }
+    }
+
+    /// `idx` as an index into the entries, or `None` (counted) when the file has no such entry.
+    fn check(&mut self, line: usize, idx: i64) -> Option<u32> {
+        if idx >= 0 && (idx as u64) < self.len as u64 && idx <= u32::MAX as i64 {
+            return Some(idx as u32);
+        }
+        self.first.get_or_insert((line, idx));
+        self.count += 1;
+        None
+    }
+
+    /// The note naming the first such corner, if there was one; `fate` says what the
+    /// corners get instead.
+    fn note(&self, path: &Path, fate: &str) -> Option<String> {
+        let (line, idx) = self.first?;
+        Some(format!(
+            "{}: line {line}: a face refers to {} {} but the file has {} `{}` line(s); \
+             {} face corner(s) like it {fate}, as in Blender's importer",
+            path.display(),
+            self.what,
+            idx + 1,
+            self.len,
+            self.keyword,
+            self.count,
+        ))
+    }
 }
 
 /// A face corner before range checks (indices may point forward).
@@ -418,31 +475,16 @@ impl ObjDocument {
             }
         }
 
+        let mut missing_uvs = MissingEntries::new("texture coordinate", "vt", doc.texcoords.len());
+        let mut missing_normals = MissingEntries::new("normal", "vn", doc.normals.len());
         for (object, raw, material, line) in raw_faces {
             let corners = raw
                 .into_iter()
                 .map(|c| {
                     Ok(Corner {
                         v: checked_index(path, line, c.v, doc.positions.len(), "vertex", "v")?,
-                        vt: c
-                            .vt
-                            .map(|t| {
-                                checked_index(
-                                    path,
-                                    line,
-                                    t,
-                                    doc.texcoords.len(),
-                                    "texture coordinate",
-                                    "vt",
-                                )
-                            })
-                            .transpose()?,
-                        vn: c
-                            .vn
-                            .map(|n| {
-                                checked_index(path, line, n, doc.normals.len(), "normal", "vn")
-                            })
-                            .transpose()?,
+                        vt: c.vt.and_then(|t| missing_uvs.check(line, t)),
+                        vn: c.vn.and_then(|n| missing_normals.check(line, n)),
                     })
                 })
                 .collect::<Result<Vec<_>, PluginError>>()?;
@@ -454,6 +496,11 @@ impl ObjDocument {
                 });
             }
         }
+
+        doc.notes
+            .extend(missing_uvs.note(path, "get no texture coordinates"));
+        doc.notes
+            .extend(missing_normals.note(path, "take normals computed from the surface"));
 
         for (object, raw, line) in raw_lines {
             let points = raw

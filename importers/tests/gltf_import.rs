@@ -453,22 +453,13 @@ fn meshopt_extension_is_refused_by_name() {
     assert!(err.message.contains("EXT_meshopt_compression"), "{err}");
 }
 
-#[test]
-fn glb_written_by_hand_imports() {
-    let json = serde_json::to_vec(&json!({
-        "asset": {"version": "2.0"},
-        "nodes": [{"mesh": 0, "children": [1]}, {"mesh": 0, "translation": [0, 0, 5]}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}],
-        "bufferViews": [{"buffer": 0, "byteLength": 36}],
-        "buffers": [{"byteLength": 36}],
-    }))
-    .unwrap();
-    let mut json = json;
-    while !json.len().is_multiple_of(4) {
+/// A GLB of `json` and `bin`, each chunk's length as written (`pad`: the JSON padded with
+/// spaces to 4 bytes first, as the spec asks).
+fn glb(json: &Value, bin: &[u8], pad: bool) -> Vec<u8> {
+    let mut json = serde_json::to_vec(json).unwrap();
+    while pad && !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    let bin = f32s(&SQUARE[..9]);
     let mut glb = b"glTF".to_vec();
     glb.extend(2u32.to_le_bytes());
     glb.extend(((12 + 8 + json.len() + 8 + bin.len()) as u32).to_le_bytes());
@@ -477,7 +468,28 @@ fn glb_written_by_hand_imports() {
     glb.extend(&json);
     glb.extend((bin.len() as u32).to_le_bytes());
     glb.extend(b"BIN\0");
-    glb.extend(&bin);
+    glb.extend(bin);
+    glb
+}
+
+/// Two nodes sharing one triangle, the second 5 m up; `pad_to` spaces make the JSON's length.
+fn two_triangles_json(pad_to: usize) -> Value {
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "nodes": [{"mesh": 0, "children": [1]}, {"mesh": 0, "translation": [0, 0, 5]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36}],
+    });
+    let len = serde_json::to_vec(&doc).unwrap().len();
+    doc["asset"]["generator"] = json!("x".repeat(pad_to.saturating_sub(len + 16)));
+    doc
+}
+
+#[test]
+fn glb_written_by_hand_imports() {
+    let glb = glb(&two_triangles_json(0), &f32s(&SQUARE[..9]), true);
     // no scenes: every root node and its children are imported
     let s = import_bytes("h.glb", &glb).unwrap();
     assert_eq!(s.meshes.len(), 2);
@@ -485,6 +497,29 @@ fn glb_written_by_hand_imports() {
     assert_eq!(s.meshes[1].name, "node_1");
     let q = s.meshes[1].world_positions()[1];
     assert_eq!([q.x, q.y, q.z], [1., 0., 5.]);
+}
+
+/// trimesh (up to 3.x) writes the JSON chunk's unpadded length and the BIN chunk right after
+/// it (its test models cube.glb and pins.glb); Blender's importer reads them, and so does
+/// springbake, for every length the JSON can have.
+#[test]
+fn glb_whose_json_chunk_is_not_padded_imports() {
+    let bin = f32s(&SQUARE[..9]);
+    let base = serde_json::to_vec(&two_triangles_json(0)).unwrap().len() + 40;
+    let mut remainders = Vec::new();
+    for extra in 0..4 {
+        let json = two_triangles_json(base + extra);
+        let bytes = glb(&json, &bin, false);
+        let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap());
+        remainders.push(json_len % 4);
+        let s = import_bytes("trimesh.glb", &bytes)
+            .unwrap_or_else(|e| panic!("JSON chunk of {json_len} bytes: {e}"));
+        assert_eq!(s.meshes.len(), 2, "JSON chunk of {json_len} bytes");
+        let q = s.meshes[1].world_positions()[1];
+        assert_eq!([q.x, q.y, q.z], [1., 0., 5.]);
+    }
+    remainders.sort_unstable();
+    assert_eq!(remainders, [0, 1, 2, 3]);
 }
 
 /// Issue 17, items 4 and 6: a buffer URI is read only inside the glTF file's folder after

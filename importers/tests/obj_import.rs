@@ -143,16 +143,6 @@ fn more_bad_lines_are_reported_with_their_line_numbers() {
             "relative vertex index -4",
         ),
         (
-            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/1 3/1\n",
-            "line 4",
-            "texture coordinate 1",
-        ),
-        (
-            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
-            "line 5",
-            "normal 2",
-        ),
-        (
             "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n",
             "line 3",
             "beyond the range of the 32-bit floats",
@@ -397,6 +387,45 @@ fn missing_normals_are_computed_unit_length() {
         .unwrap();
     let got = n[ridge];
     assert!((got[2] - 1.0).abs() < 1e-5, "{got:?}");
+}
+
+/// A face naming a `vt` or `vn` the file lacks keeps its place (Blender 5.0.1 imports
+/// trimesh's cubevt.obj, `f 1/1/1` and no `vt` line, as a 24-vertex box without UVs): the
+/// missing index is dropped, the rest of the file's UVs and normals are kept, and a note
+/// names the first such line and how many corners there are.
+#[test]
+fn faces_naming_missing_uvs_or_normals_keep_their_place_with_a_note() {
+    let s = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/1 3/1\n").unwrap();
+    assert_eq!(s.meshes[0].vertex_count(), 3);
+    assert!(s.meshes[0].primitives[0].uvs.is_none());
+    assert_eq!(s.notes.len(), 1, "{:?}", s.notes);
+    let note = &s.notes[0];
+    assert!(
+        note.contains("mem/test.obj: line 4") && note.contains("texture coordinate 1"),
+        "{note}"
+    );
+    assert!(
+        note.contains("has 0 `vt` line(s); 3 face corner(s)"),
+        "{note}"
+    );
+
+    let s = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 -1\nf 1//1 2//2 3//1\n").unwrap();
+    let normals = s.meshes[0].primitives[0].normals.as_ref().unwrap();
+    // Two corners keep the file's normal, the third takes the computed one (+z here).
+    assert_eq!(
+        normals.iter().filter(|n| **n == [0.0, 0.0, -1.0]).count(),
+        2
+    );
+    assert_eq!(normals.iter().filter(|n| **n == [0.0, 0.0, 1.0]).count(), 1);
+    assert!(
+        s.notes[0].contains("line 5") && s.notes[0].contains("normal 2"),
+        "{:?}",
+        s.notes
+    );
+
+    // A vertex index past the file's `v` lines is still an error: the face has no place.
+    let err = import("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err();
+    assert_eq!(err.location.as_deref(), Some("line 4"), "{err}");
 }
 
 #[test]

@@ -234,11 +234,24 @@ fn split_container<'a>(
             (_, CHUNK_BIN) if bin.is_none() => bin = Some(data),
             _ => {} // unknown chunks are skipped, as the spec asks
         }
-        at = end.next_multiple_of(4).max(end);
+        at = next_chunk(end, |at| u32_at(at + 4));
         index += 1;
     }
     let json = json.ok_or_else(|| header("GLB has no JSON chunk"))?;
     Ok((json, bin))
+}
+
+/// Where the chunk after one ending at `end` starts. A chunk's length includes its padding
+/// to 4 bytes, so in a valid file that is `end`; some writers (trimesh up to 3.x) give the
+/// JSON's unpadded length and pad after it. Blender's importer reads the next header at
+/// `end` too, so a chunk type found there is taken; otherwise the next multiple of 4.
+fn next_chunk(end: usize, kind_at: impl Fn(usize) -> Option<u32>) -> usize {
+    let is_chunk = |at: usize| matches!(kind_at(at), Some(CHUNK_BIN | CHUNK_JSON));
+    if end.is_multiple_of(4) || is_chunk(end) {
+        end
+    } else {
+        end.next_multiple_of(4)
+    }
 }
 
 /// Load a `data:` URI or a file named by a relative URI next to `base`.
