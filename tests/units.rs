@@ -119,3 +119,83 @@ fn a_unit_out_of_range_and_bare_mesh_flags_on_a_scene_are_refused_by_name() {
         assert!(!d.join("scene.pc2").exists());
     }
 }
+
+/// A kit of parts made in centimetres and written as metres (five 20 m boxes) gets one size
+/// note naming three and counting the rest, not one per part.
+#[test]
+fn a_kit_of_large_parts_shares_one_size_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut obj = String::new();
+    for part in 0..5u32 {
+        let x = 30.0 * f64::from(part);
+        let (points, triangles) =
+            springbake_core::shapes::box_mesh([x, 50.0, 0.0], [x + 20.0, 70.0, 20.0]);
+        obj += &format!("o Part{part}\n");
+        for p in &points {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        let first = 1 + 8 * part;
+        for [a, b, c] in triangles {
+            obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
+        }
+    }
+    std::fs::write(d.join("kit.obj"), obj).unwrap();
+    let o = springbake_in(
+        d,
+        &[
+            "bake",
+            "kit.obj",
+            "-o",
+            "kit.pc2",
+            "--frames",
+            "2",
+            "--cells",
+            "3",
+            "--progress",
+            "quiet",
+        ],
+    );
+    succeeded(&o);
+    let err = stderr(&o);
+    assert_eq!(err.matches("m across").count(), 1, "{err}");
+    assert!(
+        err.contains(
+            "5 bodies are over 10 m across (\"Part0\", \"Part1\", \"Part2\" and 2 more; the \
+             largest 20.0 m; the source's unit is 1 m)"
+        ) && err.contains("--meters-per-unit 0.01"),
+        "{err}"
+    );
+}
+
+/// A model standing on the ground whose lowest point a DCC rounded a hair below 0
+/// (usd-wg's Teapot: -7e-9 m) keeps standing there: the automatic floor stays at 0 instead
+/// of going 5 % of the model's height under it and dropping the model onto it.
+#[test]
+fn a_model_rounded_a_hair_below_the_ground_stays_on_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (points, triangles) = springbake_core::shapes::box_mesh([0.0, -1e-8, 0.0], [0.2, 0.2, 0.2]);
+    std::fs::write(
+        d.join("cube.obj"),
+        support::obj_text("Cube", (points, triangles)),
+    )
+    .unwrap();
+    let o = springbake_in(
+        d,
+        &[
+            "bake",
+            "cube.obj",
+            "-o",
+            "cube.pc2",
+            "--frames",
+            "24",
+            "--progress",
+            "quiet",
+        ],
+    );
+    succeeded(&o);
+    let low = lowest(d, "cube.pc2");
+    // Resting on a floor at 0 (within the contact's give), not 1 cm under it.
+    assert!(low.iter().all(|&y| y > -2e-3), "{low:?}");
+}

@@ -189,50 +189,107 @@ pub const LARGE_BODY_M: f64 = 10.0;
 
 /// A note per body smaller than [`SMALL_BODY_M`] or larger than [`LARGE_BODY_M`]: its size in
 /// metres and the unit the source was read in, so a unit slip is seen before the bake rather
-/// than after (a large one as the slow fall it gives).
+/// than after (a large one as the slow fall it gives). Past [`MAX_NAMED_BODIES`] of a kind
+/// (a kit of parts written in the wrong unit), one note names the first and counts the rest.
 pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
     let unit = prepared.export_scene.meters_per_unit;
     let gravity = prepared.world.settings.gravity.norm();
-    prepared
+    let sized: Vec<(String, f64)> = prepared
         .bodies
         .iter()
-        .filter_map(|b| {
+        .map(|b| {
             let size = b
                 .lattice
                 .dims
                 .iter()
                 .map(|&d| f64::from(d) * b.lattice.cell_size)
                 .fold(0.0, f64::max);
-            if size > 0.0 && size < SMALL_BODY_M {
-                Some(format!(
-                    "body \"{}\" is {:.1} cm across (the source's unit is {unit} m): it is \
-                     simulated at that real size; if it should be bigger, scale it in the source \
-                     or give its unit (`meters_per_unit` on the body, `--meters-per-unit` for a \
-                     bare mesh)",
-                    b.name,
-                    size * 100.0
-                ))
-            } else if size > LARGE_BODY_M {
-                let fall = if gravity > 0.0 {
-                    format!(
-                        ", and falling its own height takes {:.1} s",
-                        (2.0 * size / gravity).sqrt()
-                    )
-                } else {
-                    String::new()
-                };
-                Some(format!(
-                    "body \"{}\" is {size:.1} m across (the source's unit is {unit} m): it is \
-                     simulated at that real size{fall}; if it was made in centimetres or \
-                     millimetres, give its unit (`meters_per_unit = 0.01` on the body, \
-                     `--meters-per-unit 0.01` for a bare mesh) or scale it in the source",
-                    b.name,
-                ))
-            } else {
-                None
-            }
+            (format!("\"{}\"", b.name), size)
         })
-        .collect()
+        .collect();
+    let small: Vec<&(String, f64)> = sized
+        .iter()
+        .filter(|(_, size)| *size > 0.0 && *size < SMALL_BODY_M)
+        .collect();
+    let large: Vec<&(String, f64)> = sized.iter().filter(|(_, s)| *s > LARGE_BODY_M).collect();
+    let small_advice = "if it should be bigger, scale it in the source or give its unit \
+                        (`meters_per_unit` on the body, `--meters-per-unit` for a bare mesh)";
+    let large_advice = format!("{}, or scale it in the source", smaller_unit_advice(unit));
+    let fall = |size: f64| {
+        if gravity > 0.0 {
+            format!(
+                ", and falling its own height takes {:.1} s",
+                (2.0 * size / gravity).sqrt()
+            )
+        } else {
+            String::new()
+        }
+    };
+    let mut notes = Vec::new();
+    if small.len() <= MAX_NAMED_BODIES {
+        notes.extend(small.iter().map(|(name, size)| {
+            format!(
+                "body {name} is {:.1} cm across (the source's unit is {unit} m): it is \
+                 simulated at that real size; {small_advice}",
+                size * 100.0
+            )
+        }));
+    } else {
+        let named: Vec<String> = small.iter().map(|b| b.0.clone()).collect();
+        let least = small.iter().map(|b| b.1).fold(f64::MAX, f64::min);
+        notes.push(format!(
+            "{} bodies are under {:.0} cm across ({}; the smallest {:.1} cm; the source's \
+             unit is {unit} m): they are simulated at that real size; {small_advice}",
+            small.len(),
+            SMALL_BODY_M * 100.0,
+            first_and_count(&named),
+            least * 100.0
+        ));
+    }
+    if large.len() <= MAX_NAMED_BODIES {
+        notes.extend(large.iter().map(|(name, size)| {
+            format!(
+                "body {name} is {size:.1} m across (the source's unit is {unit} m): it is \
+                 simulated at that real size{}; {large_advice}",
+                fall(*size)
+            )
+        }));
+    } else {
+        let named: Vec<String> = large.iter().map(|b| b.0.clone()).collect();
+        let most = large.iter().map(|b| b.1).fold(0.0, f64::max);
+        notes.push(format!(
+            "{} bodies are over {LARGE_BODY_M:.0} m across ({}; the largest {most:.1} m; the \
+             source's unit is {unit} m): they are simulated at that real size{}; {large_advice}",
+            large.len(),
+            first_and_count(&named),
+            fall(most)
+        ));
+    }
+    notes
+}
+
+/// What to give a body too large at the source's `unit` (m): the unit a centimetre or
+/// millimetre model written in a larger unit needs. A USD stage in centimetres
+/// (`metersPerUnit = 0.01`) is not told to use 0.01 again.
+fn smaller_unit_advice(unit: f64) -> String {
+    let give = |u: &str, rest: &str| {
+        format!(
+            "give its unit (`meters_per_unit = {u}` on the body, `--meters-per-unit {u}` for a \
+             bare mesh{rest})"
+        )
+    };
+    if unit > 0.0101 {
+        format!(
+            "if it was made in centimetres, {}",
+            give("0.01", "; 0.001 for millimetres")
+        )
+    } else if unit > 0.00101 {
+        format!("if it was made in millimetres, {}", give("0.001", ""))
+    } else {
+        "if it was made in a smaller unit, give that unit (`meters_per_unit` on the body, \
+         `--meters-per-unit` for a bare mesh)"
+            .to_owned()
+    }
 }
 
 /// Parts that interpenetrate at the start deeper than the contact layer reaches stop
@@ -502,6 +559,18 @@ pub fn check_substeps(prepared: &mut Prepared, scene: &SceneFile) -> Result<(), 
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    /// A stage already in centimetres is not told to use centimetres again.
+    #[test]
+    fn a_large_body_is_told_a_unit_smaller_than_its_own() {
+        assert!(smaller_unit_advice(1.0).contains("`--meters-per-unit 0.01`"));
+        let cm = smaller_unit_advice(0.01);
+        assert!(
+            cm.contains("`meters_per_unit = 0.001`") && !cm.contains("0.01`"),
+            "{cm}"
+        );
+        assert!(!smaller_unit_advice(0.001).contains("0.001"));
+    }
 
     #[test]
     fn sizes_parse_with_units() {

@@ -22,6 +22,10 @@ use springbake_core::solver::{
 };
 use std::time::Instant;
 
+/// A model whose lowest point lies less than this fraction of its height below 0 stands on
+/// the ground (a DCC's rounding), for the automatic floor.
+const ON_GROUND: f64 = 1e-4;
+
 /// One simulated mesh.
 #[derive(Debug, Clone)]
 pub struct PreparedBody {
@@ -217,6 +221,8 @@ pub fn prepare(
 
     // Floor: explicit, none, or automatic (NaN): 0 when everything is above it, else just
     // under the lowest point (5 % of the tallest mesh), so the mesh drops, lands and settles.
+    // A lowest point a rounding below 0 (usd-wg's Teapot: -7e-9 m) is on the ground: the
+    // floor stays at 0 rather than dropping the model 5 % of its height.
     let floor = match scene.world.floor {
         Some(h) if h.is_nan() => {
             let (mut lowest, mut tallest) = (f64::INFINITY, 0.0f64);
@@ -228,7 +234,7 @@ pub fn prepare(
                 lowest = lowest.min(lo);
                 tallest = tallest.max(hi - lo);
             }
-            Some(if lowest >= 0.0 {
+            Some(if lowest >= -ON_GROUND * tallest {
                 0.0
             } else {
                 lowest - 0.05 * tallest
