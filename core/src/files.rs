@@ -79,7 +79,9 @@ pub fn contained(root: &Path, path: &Path) -> Result<PathBuf, String> {
         Ok(real)
     } else {
         Err(format!(
-            "{} resolves to {}, outside the folder {}: springbake reads only files inside it",
+            "{} resolves to {}, outside the folder {}: springbake reads only files inside it \
+             (a scene file's folder, or a bare mesh's own: to read both, bake a scene file \
+             placed in a folder that holds them)",
             path.display(),
             real.display(),
             root_real.display()

@@ -18,6 +18,12 @@ pub struct RawStage {
     pub meshes: Vec<RawMesh>,
     /// Meshes left out and why (invisible, proxy/guide, a point-instancer prototype).
     pub hidden: Vec<String>,
+    /// Layers the stage names in a format usd-core cannot read (MaterialX `.mtlx`), as
+    /// written: the stage composes without them.
+    pub unread: Vec<String>,
+    /// usd-core's composition warnings on opening the stage (a reference it could not open),
+    /// cleaned of their C++ locations.
+    pub warnings: Vec<String>,
     /// The bound materials' UsdPreviewSurface looks.
     pub materials: Vec<SurfaceMaterial>,
 }
@@ -177,11 +183,21 @@ pub fn read_stage(path: &Path, root: &Path, include_hidden: bool) -> Result<RawS
             .get_item("hidden")
             .and_then(|v| v.extract())
             .map_err(to_err)?;
+        let unread: Vec<String> = result
+            .get_item("unread")
+            .and_then(|v| v.extract())
+            .map_err(to_err)?;
+        let warnings: Vec<String> = result
+            .get_item("warnings")
+            .and_then(|v| v.extract())
+            .map_err(to_err)?;
         Ok(RawStage {
             up_axis,
             meters_per_unit,
             meshes,
             hidden,
+            unread,
+            warnings,
             materials,
         })
     })
@@ -259,6 +275,37 @@ impl UsdImporter {
                 stage.hidden.len(),
                 shown.join(", "),
                 if stage.hidden.len() > 5 { ", …" } else { "" }
+            ));
+        }
+        if !stage.unread.is_empty() {
+            let shown: Vec<&str> = stage.unread.iter().take(3).map(String::as_str).collect();
+            notes.push(format!(
+                "{}: {} layer(s) in a format usd-core cannot read were left out ({}{}): the \
+                 stage is composed without them, so materials they define (MaterialX) are \
+                 not read; the geometry is",
+                report.display(),
+                stage.unread.len(),
+                shown.join(", "),
+                if stage.unread.len() > 3 { ", …" } else { "" }
+            ));
+        }
+        // The unread layers' own warnings are said by the note above.
+        let other: Vec<&String> = stage
+            .warnings
+            .iter()
+            .filter(|w| {
+                let named = |u: &String| {
+                    let file = Path::new(u).file_name().unwrap_or_default();
+                    w.contains(&*file.to_string_lossy())
+                };
+                !stage.unread.iter().any(named)
+            })
+            .collect();
+        if let Some(first) = other.first() {
+            notes.push(format!(
+                "{}: usd-core composed the stage with {} warning(s), the first: {first}",
+                report.display(),
+                other.len()
             ));
         }
         Ok(ImportedScene {

@@ -3,7 +3,7 @@
 The Rust side (`springbake-usd`) calls exactly three functions here:
 
 * `read_stage(path, root)` -> dict: refuses a stage with a layer outside the folder `root`;
-  stage metadata and, per UsdGeomMesh, its raw arrays as
+  the layers it names that usd-core cannot read (MaterialX); stage metadata and, per UsdGeomMesh, its raw arrays as
   little-endian byte strings (points, faceVertexCounts/Indices, normals, st, world matrix).
   Triangulation, primvar expansion and vertex splitting happen in Rust.
 * `write_source_stage(source_path, out_path, spec)`: flatten the source stage, author the baked
@@ -18,6 +18,9 @@ both sides), never one Python call per vertex.
 import array
 import os
 import re
+import sys
+import tempfile
+import threading
 
 from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
@@ -40,13 +43,38 @@ def _clean_tf_message(text):
     return str(text).strip()
 
 
-def _open(path):
-    try:
-        stage = Usd.Stage.Open(path)
-    except Exception as e:  # pxr.Tf.ErrorException
-        raise BridgeError("usd-core cannot open the stage: " + _clean_tf_message(e))
+_TF_WARNING = re.compile(r"^Warning: in \S+ at line \d+ of \S+ -- (.*)$", re.M)
+
+# The process has one stderr: two stages opened at once (bodies imported side by side) would
+# swap each other's capture.
+_STDERR_CAPTURE = threading.Lock()
+
+
+def _open(path, warnings=None):
+    """Open the stage. Its composition errors (a reference usd-core cannot open) are appended
+    to `warnings`, for the importer's notes; usd-core also writes each to the process's stderr,
+    C++ locations and all, from whichever thread composed it: those lines are caught there and
+    dropped (anything else written meanwhile is passed on)."""
+    with _STDERR_CAPTURE, tempfile.TemporaryFile() as captured:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(captured.fileno(), 2)
+        try:
+            stage = Usd.Stage.Open(path)
+        except Exception as e:  # pxr.Tf.ErrorException
+            raise BridgeError("usd-core cannot open the stage: " + _clean_tf_message(e))
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            captured.seek(0)
+            text = captured.read().decode("utf-8", "replace")
+        rest = _TF_WARNING.sub("", text).strip()
+        if rest:
+            sys.stderr.write(rest + "\n")
     if stage is None:
         raise BridgeError("usd-core cannot open the stage")
+    if warnings is not None:
+        warnings.extend(str(e).strip() for e in stage.GetCompositionErrors())
     return stage
 
 
@@ -56,18 +84,29 @@ def _inside(real, root_real):
 
 def _outside_error(what, real, root_real):
     return BridgeError(
-        "%s resolves to %s, outside the folder %s: springbake reads only files inside it"
-        % (what, real, root_real)
+        "%s resolves to %s, outside the folder %s: springbake reads only files inside it (a "
+        "scene file's folder, or a bare mesh's own: to read both, bake a scene file placed in a "
+        "folder that holds them)" % (what, real, root_real)
     )
+
+
+def _readable(path):
+    """Whether usd-core has a file format for `path` (usd-core from PyPI has none for MaterialX
+    `.mtlx` files, which DCC assets reference for their materials)."""
+    extension = os.path.splitext(path)[1].lstrip(".")
+    return not extension or Sdf.FileFormat.FindByExtension(extension) is not None
 
 
 def _check_layer_tree(path, root):
     """Refuse a stage whose layers (subLayers, references, payloads, at any depth) resolve
     outside `root`, symlinks followed, before usd-core opens any of them. A dependency that does
-    not exist is left to the stage (usd-core warns and composes without it)."""
+    not exist is left to the stage (usd-core warns and composes without it), and so is one in a
+    format usd-core cannot read (the stage composes without it, as Blender's importer does
+    without MaterialX): those are returned, for a note."""
     root_real = os.path.realpath(root)
     pending = [path]
     seen = set()
+    unread = []
     while pending:
         identifier = pending.pop()
         if identifier in seen:
@@ -90,8 +129,12 @@ def _check_layer_tree(path, root):
                 raise _outside_error(
                     "the layer \"%s\" named in %s" % (asset, layer.identifier), real, root_real
                 )
-            if os.path.isfile(real):
+            if not _readable(outer):
+                if asset not in unread:
+                    unread.append(asset)
+            elif os.path.isfile(real):
                 pending.append(resolved if "[" in resolved else real)
+    return unread
 
 
 def _check_used_layers(stage, root):
@@ -398,8 +441,9 @@ def read_stage(path, root, include_hidden=False):
     of its own, see `_point_instances`; the prototypes are not simulated where they sit),
     invisible and proxy/guide geometry left out unless `include_hidden`. `hidden` lists what
     was left out and why."""
-    _check_layer_tree(path, root)
-    stage = _open(path)
+    unread = _check_layer_tree(path, root)
+    warnings = []
+    stage = _open(path, warnings)
     _check_used_layers(stage, root)
     time = Usd.TimeCode.Default()
     meshes = []
@@ -441,6 +485,8 @@ def read_stage(path, root, include_hidden=False):
         "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
         "meshes": meshes,
         "hidden": hidden,
+        "unread": unread,
+        "warnings": warnings,
         "materials": [look for look in looks.values() if look is not None],
     }
 

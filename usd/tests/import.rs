@@ -309,6 +309,39 @@ fn layers_outside_the_allowed_folder_are_refused_before_they_are_read() {
     }
 }
 
+/// A DCC asset whose looks are MaterialX files (usd-wg's OpenChessSet: `references =
+/// @./Knight_mat.mtlx@`) opens: usd-core from PyPI has no `.mtlx` reader, so the stage is
+/// composed without those layers, as Blender's importer composes it, and one note names them.
+/// usd-core's own warnings (a reference it cannot open) come back as one note, not as C++
+/// lines on stderr.
+#[test]
+fn materialx_layers_usd_core_cannot_read_are_left_out_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("look.mtlx"),
+        "<?xml version=\"1.0\"?>\n<materialx version=\"1.38\"></materialx>\n",
+    )
+    .unwrap();
+    let file = dir.path().join("asset.usda");
+    let text = TRIANGLE_LAYER.to_owned()
+        + "def Scope \"Materials\" (\n    prepend references = @./look.mtlx@</MaterialX>\n)\n{\n}\n\
+           def Scope \"Gone\" (\n    prepend references = @./missing.usda@\n)\n{\n}\n";
+    std::fs::write(&file, &text).unwrap();
+    let scene = import(&file).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.meshes.len(), 1);
+    let notes = scene.notes.join("\n");
+    assert!(
+        notes.contains("1 layer(s) in a format usd-core cannot read were left out (./look.mtlx)"),
+        "{notes}"
+    );
+    assert!(
+        notes.contains("usd-core composed the stage with 1 warning(s)")
+            && notes.contains("missing.usda")
+            && !notes.contains("stage.cpp"),
+        "{notes}"
+    );
+}
+
 /// What a renderer does not draw is not simulated (invisible prims, their children, proxy and
 /// guide purpose), and UVs come from any texCoord2f[] primvar when there is no `st`.
 #[test]
