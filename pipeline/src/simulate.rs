@@ -26,6 +26,41 @@ use std::time::Instant;
 /// the ground (a DCC's rounding), for the automatic floor.
 const ON_GROUND: f64 = 1e-4;
 
+/// Names that tell the bodies apart, from each mesh's `(name, source key)`: a name only one
+/// mesh has is kept; meshes sharing one (usd-wg's chess set: every piece's mesh prim is
+/// `Render`) take the shortest tail of their USD prim paths that differs
+/// (`White/King/Geom/Render`), or, where the key is not a prim path, Blender's `.001`,
+/// `.002` after the first. The exported meshes keep the artist's names.
+fn distinct_names(meshes: &[(String, String)]) -> Vec<String> {
+    let mut names: Vec<String> = meshes.iter().map(|m| m.0.clone()).collect();
+    let mut groups: std::collections::BTreeMap<&str, Vec<usize>> = Default::default();
+    for (i, (name, _)) in meshes.iter().enumerate() {
+        groups.entry(name.as_str()).or_default().push(i);
+    }
+    for (name, group) in groups.into_iter().filter(|g| g.1.len() > 1) {
+        let paths: Vec<Vec<&str>> = group
+            .iter()
+            .map(|&i| meshes[i].1.split('/').filter(|c| !c.is_empty()).collect())
+            .collect();
+        let tail = |path: &Vec<&str>, k: usize| path[path.len().saturating_sub(k)..].join("/");
+        let longest = paths.iter().map(Vec::len).max().unwrap_or(0);
+        let by_path = group.iter().all(|&i| meshes[i].1.starts_with('/'));
+        let distinct_at = (2..=longest).find(|&k| {
+            let tails: std::collections::BTreeSet<String> =
+                paths.iter().map(|p| tail(p, k)).collect();
+            tails.len() == paths.len()
+        });
+        for (n, (&i, path)) in group.iter().zip(&paths).enumerate() {
+            names[i] = match distinct_at {
+                Some(k) if by_path => tail(path, k),
+                _ if n == 0 => name.to_owned(),
+                _ => format!("{name}.{n:03}"),
+            };
+        }
+    }
+    names
+}
+
 /// One simulated mesh.
 #[derive(Debug, Clone)]
 pub struct PreparedBody {
@@ -150,6 +185,7 @@ pub fn prepare(
 
     struct Pending {
         name: String,
+        key: String,
         mesh_index: usize,
         points: Vec<Point3<f64>>,
         triangles: Vec<[u32; 3]>,
@@ -210,6 +246,7 @@ pub fn prepare(
                 .collect();
             pending.push(Pending {
                 name: mesh.name.clone(),
+                key: mesh.source_key.clone(),
                 mesh_index,
                 points,
                 triangles: mesh.triangles(),
@@ -217,6 +254,14 @@ pub fn prepare(
                 local_from_sim,
             });
         }
+    }
+
+    let names: Vec<(String, String)> = pending
+        .iter()
+        .map(|p| (p.name.clone(), p.key.clone()))
+        .collect();
+    for (p, name) in pending.iter_mut().zip(distinct_names(&names)) {
+        p.name = name;
     }
 
     // Floor: explicit, none, or automatic (NaN): 0 when everything is above it, else just
@@ -747,5 +792,39 @@ impl Prepared {
             .iter()
             .flat_map(|x| planes.iter().map(move |p| p.offset - p.normal.dot(x)))
             .fold(0.0, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distinct_names;
+
+    fn named(meshes: &[(&str, &str)]) -> Vec<String> {
+        let meshes: Vec<(String, String)> = meshes
+            .iter()
+            .map(|(n, k)| (n.to_string(), k.to_string()))
+            .collect();
+        distinct_names(&meshes)
+    }
+
+    #[test]
+    fn shared_names_take_the_tail_of_their_prim_paths_or_a_number() {
+        let usd = named(&[
+            ("Render", "/Set/White/King/Geom/Render"),
+            ("Render", "/Set/Black/King/Geom/Render"),
+            ("Render", "/Set/White/Queen/Geom/Render"),
+            ("Board", "/Set/Board/Geom/Board"),
+        ]);
+        assert_eq!(
+            usd,
+            [
+                "White/King/Geom/Render",
+                "Black/King/Geom/Render",
+                "White/Queen/Geom/Render",
+                "Board"
+            ]
+        );
+        let gltf = named(&[("Cube", "node:0"), ("Ball", "node:1"), ("Cube", "node:2")]);
+        assert_eq!(gltf, ["Cube", "Ball", "Cube.001"]);
     }
 }
