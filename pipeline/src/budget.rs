@@ -229,21 +229,21 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
     if small.len() <= MAX_NAMED_BODIES {
         notes.extend(small.iter().map(|(name, size)| {
             format!(
-                "body {name} is {:.1} cm across (the source's unit is {unit} m): it is \
-                 simulated at that real size; {small_advice}",
-                size * 100.0
+                "body {name} is {} across (the source's unit is {unit} m): it is simulated at \
+                 that real size; {small_advice}",
+                small_length(*size)
             )
         }));
     } else {
         let named: Vec<String> = small.iter().map(|b| b.0.clone()).collect();
         let least = small.iter().map(|b| b.1).fold(f64::MAX, f64::min);
         notes.push(format!(
-            "{} bodies are under {:.0} cm across ({}; the smallest {:.1} cm; the source's \
-             unit is {unit} m): they are simulated at that real size; {small_advice}",
+            "{} bodies are under {:.0} cm across ({}; the smallest {}; the source's unit is \
+             {unit} m): they are simulated at that real size; {small_advice}",
             small.len(),
             SMALL_BODY_M * 100.0,
             first_and_count(&named),
-            least * 100.0
+            small_length(least)
         ));
     }
     if large.len() <= MAX_NAMED_BODIES {
@@ -266,6 +266,16 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
         ));
     }
     notes
+}
+
+/// A small body's size, metres, in centimetres, or in millimetres under one (a 0.4 mm part
+/// read "0.0 cm").
+fn small_length(metres: f64) -> String {
+    if metres < 0.01 {
+        format!("{:.2} mm", metres * 1000.0)
+    } else {
+        format!("{:.1} cm", metres * 100.0)
+    }
 }
 
 /// What to give a body too large at the source's `unit` (m): the unit a centimetre or
@@ -570,6 +580,8 @@ mod tests {
             "{cm}"
         );
         assert!(!smaller_unit_advice(0.001).contains("0.001"));
+        assert_eq!(small_length(0.022), "2.2 cm");
+        assert_eq!(small_length(0.0004), "0.40 mm");
     }
 
     #[test]
