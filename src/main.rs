@@ -556,8 +556,13 @@ fn run_bake(
         .collect();
     if let Some(&(frame, gain)) = gains.first() {
         let worst = gains.iter().map(|g| g.1).fold(0.0, f64::max);
+        let largest = if gains.len() > 1 {
+            format!("; the largest rise {worst:.3} J")
+        } else {
+            String::new()
+        };
         eprintln!(
-            "springbake: warning: the total energy rose beyond the work done on the bodies in {} frame(s), first at frame {frame} ({gain:.3} J, at most {worst:.3} J): the motion may not be physical (see energy_gain in --report); try more substeps or cells",
+            "springbake: warning: the total energy rose beyond the work done on the bodies in {} frame(s), first at frame {frame} (by {gain:.3} J{largest}): the motion may not be physical (see energy_gain in --report); try more substeps or cells",
             gains.len()
         );
     }

@@ -215,10 +215,10 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
     let small_advice = "if it should be bigger, scale it in the source or give its unit \
                         (`meters_per_unit` on the body, `--meters-per-unit` for a bare mesh)";
     let large_advice = format!("{}, or scale it in the source", smaller_unit_advice(unit));
-    let fall = |size: f64| {
+    let fall = |size: f64, who: &str| {
         if gravity > 0.0 {
             format!(
-                ", and falling its own height takes {:.1} s",
+                ", and {who} its own height takes {:.1} s",
                 (2.0 * size / gravity).sqrt()
             )
         } else {
@@ -251,7 +251,7 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
             format!(
                 "body {name} is {size:.1} m across (the source's unit is {unit} m): it is \
                  simulated at that real size{}; {large_advice}",
-                fall(*size)
+                fall(*size, "falling")
             )
         }));
     } else {
@@ -262,7 +262,7 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
              source's unit is {unit} m): they are simulated at that real size{}; {large_advice}",
             large.len(),
             first_and_count(&named),
-            fall(most)
+            fall(most, "the largest falling")
         ));
     }
     notes
