@@ -929,31 +929,16 @@ fn a_mesh_coarser_than_its_lattice_is_named_before_the_bake() {
     assert!(!err.contains("coarse mesh"), "{err}");
 }
 
-/// Five boxes side by side as one OBJ, each `step` metres from the last (0.3 m wide).
-fn row_of_boxes(step: f64) -> String {
-    let mut obj = String::new();
-    for part in 0..5u32 {
-        let x = step * f64::from(part);
-        let (points, triangles) =
-            springbake_core::shapes::box_mesh([x, 0.5, 0.0], [x + 0.3, 0.8, 0.3]);
-        obj += &format!("o Part{part}\n");
-        for p in &points {
-            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
-        }
-        let first = 1 + 8 * part;
-        for [a, b, c] in triangles {
-            obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
-        }
-    }
-    obj
-}
-
 /// A kit of many coarse parts gets one note naming a few and counting the rest, not one per
 /// part, and the bake's line names its first and last point caches and how many there are.
 #[test]
 fn many_coarse_parts_share_one_note_and_one_line() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("kit.obj"), row_of_boxes(0.5)).unwrap();
+    std::fs::write(
+        dir.path().join("kit.obj"),
+        support::row_of_boxes(0.5, 0.5, 0.3),
+    )
+    .unwrap();
     let o = support::springbake_in(
         dir.path(),
         &[
@@ -986,7 +971,11 @@ fn many_coarse_parts_share_one_note_and_one_line() {
 #[test]
 fn many_interpenetrating_pairs_share_one_note() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("kit.obj"), row_of_boxes(0.2)).unwrap();
+    std::fs::write(
+        dir.path().join("kit.obj"),
+        support::row_of_boxes(0.2, 0.5, 0.3),
+    )
+    .unwrap();
     let err = support::bake_file(dir.path(), "kit.obj", "kit.pc2", "2");
     assert_eq!(err.matches("interpenetrate").count(), 1, "{err}");
     assert!(

@@ -126,21 +126,7 @@ fn a_unit_out_of_range_and_bare_mesh_flags_on_a_scene_are_refused_by_name() {
 fn a_kit_of_large_parts_shares_one_size_note() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let mut obj = String::new();
-    for part in 0..5u32 {
-        let x = 30.0 * f64::from(part);
-        let (points, triangles) =
-            springbake_core::shapes::box_mesh([x, 50.0, 0.0], [x + 20.0, 70.0, 20.0]);
-        obj += &format!("o Part{part}\n");
-        for p in &points {
-            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
-        }
-        let first = 1 + 8 * part;
-        for [a, b, c] in triangles {
-            obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
-        }
-    }
-    std::fs::write(d.join("kit.obj"), obj).unwrap();
+    std::fs::write(d.join("kit.obj"), support::row_of_boxes(30.0, 50.0, 20.0)).unwrap();
     let o = springbake_in(
         d,
         &[

@@ -141,3 +141,23 @@ pub fn pc2_frames(bytes: &[u8]) -> Vec<Vec<[f32; 3]>> {
         })
         .collect()
 }
+
+/// Five boxes side by side as one OBJ (objects `Part0`…`Part4`), each `step` from the last
+/// along x, `side` wide, their bottoms at `bottom`, in the file's units.
+pub fn row_of_boxes(step: f64, bottom: f64, side: f64) -> String {
+    let mut obj = String::new();
+    for part in 0..5u32 {
+        let x = step * f64::from(part);
+        let (points, triangles) =
+            springbake_core::shapes::box_mesh([x, bottom, 0.0], [x + side, bottom + side, side]);
+        obj += &format!("o Part{part}\n");
+        for p in &points {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        let first = 1 + 8 * part;
+        for [a, b, c] in triangles {
+            obj += &format!("f {} {} {}\n", a + first, b + first, c + first);
+        }
+    }
+    obj
+}
