@@ -212,8 +212,8 @@ pub fn body_size_notes(prepared: &Prepared) -> Vec<String> {
         .filter(|(_, size)| *size > 0.0 && *size < SMALL_BODY_M)
         .collect();
     let large: Vec<&(String, f64)> = sized.iter().filter(|(_, s)| *s > LARGE_BODY_M).collect();
-    let small_advice = "if it should be bigger, scale it in the source or give its unit \
-                        (`meters_per_unit` on the body, `--meters-per-unit` for a bare mesh)";
+    let small_advice = "if the model should be bigger, scale it in the source or give its \
+                        unit (`meters_per_unit` on the body, `--meters-per-unit` for a bare mesh)";
     let large_advice = format!("{}, or scale it in the source", smaller_unit_advice(unit));
     let fall = |size: f64, who: &str| {
         if gravity > 0.0 {
@@ -290,14 +290,17 @@ fn smaller_unit_advice(unit: f64) -> String {
     };
     if unit > 0.0101 {
         format!(
-            "if it was made in centimetres, {}",
+            "if the model was made in centimetres, {}",
             give("0.01", "; 0.001 for millimetres")
         )
     } else if unit > 0.00101 {
-        format!("if it was made in millimetres, {}", give("0.001", ""))
+        format!(
+            "if the model was made in millimetres, {}",
+            give("0.001", "")
+        )
     } else {
-        "if it was made in a smaller unit, give that unit (`meters_per_unit` on the body, \
-         `--meters-per-unit` for a bare mesh)"
+        "if the model was made in a smaller unit, give that unit (`meters_per_unit` on the \
+         body, `--meters-per-unit` for a bare mesh)"
             .to_owned()
     }
 }

@@ -3,8 +3,9 @@
 The Rust side (`springbake-usd`) calls exactly three functions here:
 
 * `read_stage(path, root)` -> dict: refuses a stage with a layer outside the folder `root`;
-  the layers it names that usd-core cannot read (MaterialX); stage metadata and, per UsdGeomMesh, its raw arrays as
-  little-endian byte strings (points, faceVertexCounts/Indices, normals, st, world matrix).
+  the layers it names that usd-core cannot read (MaterialX) and its composition errors;
+  stage metadata and, per UsdGeomMesh, its raw arrays as little-endian byte strings
+  (points, faceVertexCounts/Indices, normals, st, world matrix).
   Triangulation, primvar expansion and vertex splitting happen in Rust.
 * `write_source_stage(source_path, out_path, spec)`: flatten the source stage, author the baked
   `points` (and `normals`, `extent`) time samples on the named mesh prims, export.
