@@ -310,7 +310,8 @@ struct RawCorner {
 
 impl ObjDocument {
     /// Parse OBJ text. Unknown keywords (`s`, `curv`, `vp`, …) are skipped; every malformed
-    /// statement is an error naming its line.
+    /// statement is an error naming its line, but for a face corner's `vt` or `vn` index past
+    /// the file's last, which is dropped with a note ([`ObjDocument::notes`]).
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<ObjDocument, PluginError> {
         // A UTF-8 byte-order mark (Windows editors write one) is not part of the first line:
         // kept, it hid the first `v` and shifted every index after it.
