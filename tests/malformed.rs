@@ -240,6 +240,8 @@ fn glb_cases(cases: &mut Vec<Case>, dir: &Path) {
     }
 }
 
+/// A face naming a `vt` or `vn` the file lacks is not among these: Blender keeps the face
+/// and so does springbake, with a note (`importers/tests/obj_import.rs`).
 fn obj_cases(cases: &mut Vec<Case>, dir: &Path) {
     let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
     let bodies: Vec<String> = vec![
@@ -252,8 +254,6 @@ fn obj_cases(cases: &mut Vec<Case>, dir: &Path) {
         format!("{tri}f -4 -1 -2\n"),
         format!("{tri}f 1 2 99999999999\n"),
         format!("{tri}f a b c\n"),
-        format!("{tri}f 1/9 2/9 3/9\n"),
-        format!("{tri}f 1//9 2//9 3//9\n"),
         format!("{tri}f 1/1/1/1 2 3\n"),
         "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
         "v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
