@@ -127,23 +127,7 @@ fn a_kit_of_large_parts_shares_one_size_note() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("kit.obj"), support::row_of_boxes(30.0, 50.0, 20.0)).unwrap();
-    let o = springbake_in(
-        d,
-        &[
-            "bake",
-            "kit.obj",
-            "-o",
-            "kit.pc2",
-            "--frames",
-            "2",
-            "--cells",
-            "3",
-            "--progress",
-            "quiet",
-        ],
-    );
-    succeeded(&o);
-    let err = stderr(&o);
+    let err = support::bake_file(d, "kit.obj", "kit.pc2", "2");
     assert_eq!(err.matches("m across").count(), 1, "{err}");
     assert!(
         err.contains(
@@ -167,20 +151,7 @@ fn a_model_rounded_a_hair_below_the_ground_stays_on_it() {
         support::obj_text("Cube", (points, triangles)),
     )
     .unwrap();
-    let o = springbake_in(
-        d,
-        &[
-            "bake",
-            "cube.obj",
-            "-o",
-            "cube.pc2",
-            "--frames",
-            "24",
-            "--progress",
-            "quiet",
-        ],
-    );
-    succeeded(&o);
+    support::bake_file(d, "cube.obj", "cube.pc2", "24");
     let low = lowest(d, "cube.pc2");
     // Resting on a floor at 0 (within the contact's give), not 1 cm under it.
     assert!(low.iter().all(|&y| y > -2e-3), "{low:?}");
