@@ -139,6 +139,7 @@ mod mesh;
 mod neighbours;
 pub(crate) mod overlap;
 mod prepare;
+mod simplify;
 pub(crate) use constraint::BodyConstraint;
 use constraint::Stencils;
 use detect::*;
@@ -954,7 +955,14 @@ impl World {
         if lattice.cells.is_empty() {
             return;
         }
-        let (refined, refined_triangles) = refine(positions, triangles, 0.5 * lattice.cell_size);
+        // Faces at the samples' spacing (half a cell), clustered like their vertices.
+        let sample_spacing = 0.5 * lattice.cell_size;
+        let clustered = simplify::cluster_triangles(
+            positions,
+            triangles,
+            crate::lattice::VERTEX_CLUSTER * sample_spacing,
+        );
+        let (refined, refined_triangles) = refine(positions, &clustered, sample_spacing);
         let embedding = Embedding::new(lattice, &refined);
         self.register_mesh(
             body,
