@@ -134,8 +134,9 @@ impl StaticCollider {
     /// a contact constraint sees it: `(unit face normal, depth)`. A segment that enters a face
     /// from its front side is a contact with the first face it enters, however deep the point
     /// went (no tunnelling through a thin collider); otherwise a point lying behind the inside
-    /// of a face, at most `behind` deep, is a contact with the nearest such face. `scratch`
-    /// holds the grid's candidates.
+    /// of a face, at most `behind` deep, is a contact with the nearest such face, unless it
+    /// lies as near in front of another face (a double-sided sheet). `scratch` holds the
+    /// grid's candidates.
     pub fn penetration(
         &mut self,
         previous: &Vector3<f64>,
@@ -176,7 +177,26 @@ impl StaticCollider {
                 nearest = Some((n, depth));
             }
         }
-        crossing.map(|(_, n, d)| (n, d)).or(nearest)
+        if crossing.is_some() {
+            return crossing.map(|(_, n, d)| (n, d));
+        }
+        // A point as near a face it lies in front of is outside: a double-sided sheet's
+        // turned-over face, or a slab thinner than `behind`, would push it through.
+        nearest.filter(|&(_, depth)| !self.in_front_within(x, depth, scratch))
+    }
+
+    /// Whether `x` lies in front of the interior of one of the `candidates`, at most `gap`
+    /// from it.
+    fn in_front_within(&self, x: &Vector3<f64>, gap: f64, candidates: &[u32]) -> bool {
+        candidates.iter().any(|&t| {
+            let n = self.normals[t as usize];
+            let [a, b, c] = self.corners(t as usize);
+            let side = (x - a).dot(&n);
+            n != Vector3::zeros()
+                && side >= 0.0
+                && side <= gap * (1.0 + 1e-9)
+                && geometry::closest_on_triangle(x, &a, &b, &c).1
+        })
     }
 }
 

@@ -356,9 +356,12 @@ fn near_contact(probe: &Probe, q: Vector3<f64>, n: Vector3<f64>, interior: bool)
             depth: h - d,
         })
     } else if side < 0.0 && interior && d < probe.behind {
+        // Behind the face: the direction to the point is against its normal. A face at the
+        // same distance that the point lies in front of wins the tie (a double-sided sheet's
+        // coincident faces: the one behind pushed the point through the sheet).
         Some(Near {
             distance: d,
-            facing: 1.0,
+            facing: -1.0,
             normal: n,
             depth: h + d,
         })
@@ -380,7 +383,8 @@ const DISTANCE_TIE: f64 = 1e-9;
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Near {
     distance: f64,
-    /// Cosine between the face's normal and the direction to the point (1 inside the face).
+    /// Cosine between the face's normal and the direction to the point (1 in front of the
+    /// face's interior, −1 behind it).
     facing: f64,
     normal: Vector3<f64>,
     depth: f64,
