@@ -15,9 +15,16 @@
 //! winding number along a vertical line, counted both ways: the signed crossings above the
 //! point and all the crossings of the line must agree (the line leaves a closed mesh as often
 //! as it enters; an open sheet or a hole in the line's way gives no answer, read as outside).
+//!
+//! A pair is also welded when an edge of one mesh passes through a face of the other at rest
+//! and the two are not both closed: a sheet or a double-sided shell has no inside for the
+//! deep test, yet a part that pierces it can never be pushed out (trimesh's `chair_model.obj`:
+//! a wire loop through a double-sided bowl, each side's samples pushed by the other's two
+//! faces, fought each other until the chair shook at 9 m/s). The crossing points are where
+//! the glue ties the two. Two closed solids that overlap within the layer still separate.
 
 use super::{BodyMesh, BEHIND_LAYERS};
-use crate::collide::geometry::closest_on_triangle;
+use crate::collide::geometry::{closest_on_triangle, segment_crosses_triangle};
 use crate::collide::BoxGrid;
 use crate::lattice::fill::vertical_crossing;
 use crate::solver::World;
@@ -93,6 +100,22 @@ impl Solid {
         false
     }
 
+    /// Where segment `p0 → p1` passes through the mesh's triangles, strictly inside both
+    /// (a corner resting on a face, an edge on an edge, coplanar faces do not count), pushed
+    /// to `out`.
+    fn crossings(&mut self, p0: &V3, p1: &V3, out: &mut Vec<V3>) {
+        const INSIDE: f64 = 1e-6;
+        self.grid.query(&p0.inf(p1), &p0.sup(p1), &mut self.found);
+        for &t in &self.found {
+            let [a, b, c] = &self.triangles[t as usize];
+            if let Some((s, w)) = segment_crosses_triangle(p0, p1, a, b, c) {
+                if s > INSIDE && s < 1.0 - INSIDE && w.iter().all(|&w| w > INSIDE) {
+                    out.push(p0 + (p1 - p0) * s);
+                }
+            }
+        }
+    }
+
     /// Whether some triangle of the mesh comes within `r` of `p`.
     fn near_surface(&mut self, p: &V3, r: f64) -> bool {
         self.grid
@@ -107,21 +130,29 @@ impl Solid {
 
 /// The bodies that interpenetrate at the start and each body's solid (for the glue).
 pub(crate) struct StartOverlaps {
-    /// Body pairs `(lower, higher)` whose meshes overlap deeper than the layer.
+    /// Body pairs `(lower, higher)` whose meshes overlap deeper than the layer, or cross
+    /// where one is not closed.
     pub pairs: Vec<(usize, usize)>,
+    /// Per pair: the points where the meshes cross at rest.
+    pub welds: Vec<Vec<V3>>,
     /// Per body: its mesh at rest, for the bodies of `pairs`.
     pub solids: Vec<Option<Solid>>,
 }
 
 /// The body pairs of `world` whose display meshes overlap deeper than the contact layer at
-/// rest (module docs), among the bodies with a collision mesh.
+/// rest, or cross where one is not closed (module docs), among the bodies with a collision
+/// mesh.
 pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     let bc = &world.body_contact;
     let depth = BEHIND_LAYERS * world.settings.layer.thickness_m;
     let mut solids: Vec<Option<Solid>> = (0..world.bodies.len()).map(|_| None).collect();
-    let mut pairs = Vec::new();
+    let (mut pairs, mut welds) = (Vec::new(), Vec::new());
     if bc.meshes.len() < 2 || depth.is_nan() || depth <= 0.0 {
-        return StartOverlaps { pairs, solids };
+        return StartOverlaps {
+            pairs,
+            welds,
+            solids,
+        };
     }
     let meshes: Vec<&BodyMesh> = bc.meshes.iter().collect();
     let rest = |ids: &[u32; 8], w: &[f64; 8]| -> V3 {
@@ -173,8 +204,26 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                         && !solid.near_surface(p, depth)
                 });
             }
-            if deep {
+            let mut crossings = Vec::new();
+            if deep || !(meshes[i].closed && meshes[j].closed) {
+                for (from, to) in [(i, j), (j, i)] {
+                    let solid = solids[meshes[to].body].get_or_insert_with(|| solid_of(to));
+                    let v = &vertices[from];
+                    for t in &meshes[from].display {
+                        for e in 0..3 {
+                            let (p0, p1) = (&v[t[e] as usize], &v[t[(e + 1) % 3] as usize]);
+                            let outside =
+                                |k: usize| p0[k].max(p1[k]) < lo[k] || p0[k].min(p1[k]) > hi[k];
+                            if !(0..3).any(outside) {
+                                solid.crossings(p0, p1, &mut crossings);
+                            }
+                        }
+                    }
+                }
+            }
+            if deep || !crossings.is_empty() {
                 pairs.push((a, b));
+                welds.push(crossings);
                 // Both sides' solids: the glue attaches each side's nodes inside the other.
                 for m in [i, j] {
                     solids[meshes[m].body].get_or_insert_with(|| solid_of(m));
@@ -188,7 +237,11 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
             *solid = None;
         }
     }
-    StartOverlaps { pairs, solids }
+    StartOverlaps {
+        pairs,
+        welds,
+        solids,
+    }
 }
 
 /// Per body: its contact samples at rest.

@@ -3,7 +3,10 @@
 //! node of one that lies inside the other's mesh becomes a material point of the other's
 //! lattice, attached to the cell it lies in at rest. The pair no longer collides; the two
 //! move as the one object the artist modelled (a sphere sunk into a box stays sunk in it, eyes
-//! stay in the head).
+//! stay in the head). The two are also tied where their meshes cross: the corners of each
+//! one's cells holding a crossing point are attached to the other's cells. That is all that
+//! holds a part thinner than a cell (a rod through a box, no node of its lattice inside the
+//! box) or a part through a sheet, which has no inside.
 //!
 //! An attachment is the zero-length XPBD constraint `C = x_n − Σ_k w_k x_k` (node `n`, the
 //! cell's eight nodes `k` at trilinear weights `w`), with no compliance: it is solved exactly
@@ -49,13 +52,20 @@ impl Glue {
                 && world.bodies[b].material.is_some()
                 && !world.bodies[b].cells.is_empty()
         };
-        let StartOverlaps { pairs, mut solids } = start_overlaps(world);
+        let StartOverlaps {
+            pairs,
+            welds,
+            mut solids,
+        } = start_overlaps(world);
         let mut attachments = Vec::new();
         let mut glued = Vec::new();
-        for &(a, b) in &pairs {
+        for (&(a, b), weld) in pairs.iter().zip(&welds) {
             glued.push(flexible(a) && flexible(b));
             if !(flexible(a) && flexible(b)) {
                 continue;
+            }
+            for (from, to) in [(a, b), (b, a)] {
+                attach_at_crossings(world, kept, (from, to), weld, &mut attachments);
             }
             for (from, to) in [(a, b), (b, a)] {
                 let Some(solid) = solids[to].as_mut() else {
@@ -115,6 +125,38 @@ impl Glue {
             for (k, &c) in a.cell.iter().enumerate() {
                 x[c as usize] += step * (a.weights[k] * w[c as usize]);
             }
+        }
+    }
+}
+
+/// Attach the corners of `from`'s cells that hold a crossing point of the pair at rest
+/// (`weld`) to the cells of `to` they lie in: the two meshes pass through each other there
+/// and move as one.
+fn attach_at_crossings(
+    world: &World,
+    kept: &[u32],
+    (from, to): (usize, usize),
+    weld: &[V3],
+    attachments: &mut Vec<Attachment>,
+) {
+    let (mut from_cells, mut to_cells) = (RestCells::new(world, from), RestCells::new(world, to));
+    let mut corners = std::collections::BTreeSet::new();
+    for p in weld {
+        if let Some((cell, _)) = from_cells.locate(world, p) {
+            corners.extend(cell);
+        }
+    }
+    for i in corners {
+        let i = i as usize;
+        if world.nodes.mass[i] <= 0.0 {
+            continue;
+        }
+        if let Some((cell, weights)) = to_cells.locate(world, &world.rest[i]) {
+            attachments.push(Attachment {
+                node: kept[i],
+                cell: cell.map(|k| kept[k as usize]),
+                weights,
+            });
         }
     }
 }
