@@ -193,9 +193,10 @@ pub struct World {
     pub(crate) rest: Vec<Vector3<f64>>,
     /// The XPBD solver's derived model and buffers, built at its first step.
     pub(crate) xpbd: Option<super::xpbd::Model>,
-    /// The most total energy the bodies have had at the start of a frame, plus the
-    /// manipulators' work since (see [`FrameDiagnostics::energy_gain`]), J.
-    energy_budget: Option<f64>,
+    /// The total energy the bodies had at the start of the first frame, plus the work done
+    /// on them since and what changed between frames (see [`FrameDiagnostics::energy_gain`]),
+    /// and their total energy at the end of the last frame, J.
+    energy_budget: Option<(f64, f64)>,
     /// The elastic energy last measured, keyed by the time and the positions' fingerprint
     /// (see [`World::frame_energies`]).
     elastic_memo: Option<((u64, u64), f64)>,
@@ -430,11 +431,16 @@ impl World {
         let balanced = self.settings.wind.is_none()
             && self.fields.is_empty()
             && (self.settings.integrator == Integrator::Xpbd || !manipulated);
-        let total = kinetic + elastic + gravity;
-        let budget = self.energy_budget.map_or(total, |b| b.max(total))
+        // What changed between frames (an event, a caller moving nodes) enters the budget;
+        // what changes in a frame may only be the work done on the bodies.
+        let start = kinetic + elastic + gravity;
+        let budget = self
+            .energy_budget
+            .map_or(start, |(budget, end)| budget + start - end)
             + acc.manipulator_work
             + acc.separation_work;
-        self.energy_budget = Some(budget);
+        let end = diag.kinetic_energy + diag.elastic_energy + diag.gravity_energy;
+        self.energy_budget = Some((budget, end));
         let mass: f64 = self.nodes.mass.iter().sum();
         let slack = 0.5 * mass * super::xpbd::MAX_SEPARATION_SPEED.powi(2)
             + mass * self.settings.gravity.norm() * 1e-3
