@@ -7,12 +7,11 @@
 mod support;
 
 use springbake_core::collide::StaticCollider;
-use springbake_core::lattice::surface_samples;
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{BodyHandle, Integrator, Plane, World, WorldSettings};
-use support::{mesh, Mesh};
+use support::{add_part, mesh, Mesh};
 
 /// A box `[lo, hi]` without its top (+y) face, wound outwards.
 fn tray(lo: [f64; 3], hi: [f64; 3]) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
@@ -44,14 +43,6 @@ fn floored_world(material: &Material, cell: f64) -> World {
         integrator: Integrator::Xpbd,
         ..WorldSettings::default()
     })
-}
-
-fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> BodyHandle {
-    let h = w.add_lattice_body(name, &m.lattice, material, Vector3::zeros());
-    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-    w.add_contact_surface(h, &m.lattice, &samples, &areas);
-    w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-    h
 }
 
 fn display(w: &World, m: &Mesh, h: BodyHandle) -> Vec<Point3<f64>> {

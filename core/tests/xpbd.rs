@@ -7,7 +7,6 @@
 
 mod support;
 
-use springbake_core::lattice::surface_samples;
 use springbake_core::material::Material;
 use springbake_core::nalgebra::Vector3;
 use springbake_core::shapes::{box_mesh, uv_sphere};
@@ -15,7 +14,7 @@ use springbake_core::solver::manipulator::ManipulatorKey;
 use springbake_core::solver::{
     BodyHandle, FrameDiagnostics, Integrator, ManipulatorTrack, Plane, World, WorldSettings,
 };
-use support::{mesh, product_world, rebound_ball, spin_kept, Mesh};
+use support::{add_part, mesh, product_world, rebound_ball, spin_kept, Mesh};
 
 const FRAME: f64 = 1.0 / 24.0;
 
@@ -353,15 +352,6 @@ fn floored_parts_world(rubber: &Material) -> World {
         integrator: Integrator::Xpbd,
         ..WorldSettings::default()
     })
-}
-
-/// Add `m` to `w` as a body at rest named `name` whose mesh touches the other bodies.
-fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> BodyHandle {
-    let h = w.add_lattice_body(name, &m.lattice, material, Vector3::zeros());
-    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-    w.add_contact_surface(h, &m.lattice, &samples, &areas);
-    w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
-    h
 }
 
 /// Two rubber cubes (0.5 m, 6 cells) side by side with a gap of `gap` metres (negative:

@@ -1,7 +1,7 @@
 //! Set-up shared by core's integration tests: a closed mesh fitted with a lattice at the
 //! default fit settings (`fit`, `fitted_box`), world settings with a floor at y = 0 under
 //! the default contact layer (`floor_settings`), and a body set up as the product sets up a
-//! mesh (`mesh`, `product_world`; also used by `examples/solver_checks.rs`). Each test file includes it with
+//! mesh (`mesh`, `product_world`, `add_part`; also used by `examples/solver_checks.rs`). Each test file includes it with
 //! `mod support;`; it holds set-up only, no assertions.
 
 use springbake_core::lattice::fill::cell_fill;
@@ -11,7 +11,7 @@ use springbake_core::lattice::{
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::box_mesh;
-use springbake_core::solver::{Integrator, Plane, World, WorldSettings};
+use springbake_core::solver::{BodyHandle, Integrator, Plane, World, WorldSettings};
 
 /// The lattice of the closed mesh (`points`, `triangles`) with `cells` cells along its
 /// longest side, the other fit settings at their defaults.
@@ -202,4 +202,15 @@ pub fn rebound(w: &mut World, frames: usize) -> Rebound {
         }
     }
     out
+}
+
+/// Add `m` to `w` as a body at rest named `name` whose mesh touches the other bodies (contact
+/// samples at half a cell, its display surface for body–body contact).
+#[allow(dead_code)]
+pub fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> BodyHandle {
+    let h = w.add_lattice_body(name, &m.lattice, material, Vector3::zeros());
+    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+    w.add_contact_surface(h, &m.lattice, &samples, &areas);
+    w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
+    h
 }
