@@ -30,7 +30,6 @@ pub(super) fn cluster_triangles(
     triangles: &[[u32; 3]],
     side: f64,
 ) -> Vec<[u32; 3]> {
-    let valid = |t: &[u32; 3]| t.iter().all(|&i| (i as usize) < positions.len());
     if !(side > 0.0 && side.is_finite()) {
         return triangles.to_vec();
     }
@@ -38,7 +37,7 @@ pub(super) fn cluster_triangles(
     let representative = representatives(positions, &normals, triangles, side);
     let mut kept = HashSet::new();
     let mut out = Vec::with_capacity(triangles.len());
-    for t in triangles.iter().filter(|t| valid(t)) {
+    for t in triangles.iter().filter(|t| indexes(positions, t)) {
         let moved = t.map(|i| representative[i as usize]);
         if moved != *t {
             let [a, b, c] = moved;
@@ -60,6 +59,11 @@ pub(super) fn cluster_triangles(
     out
 }
 
+/// Whether every corner of `t` indexes `positions`.
+fn indexes(positions: &[Point3<f64>], t: &[u32; 3]) -> bool {
+    t.iter().all(|&i| (i as usize) < positions.len())
+}
+
 /// The (unnormalised) normal of triangle `t`.
 fn face_normal(positions: &[Point3<f64>], t: &[u32; 3]) -> Vector3<f64> {
     let [a, b, c] = t.map(|i| positions[i as usize]);
@@ -70,10 +74,7 @@ fn face_normal(positions: &[Point3<f64>], t: &[u32; 3]) -> Vector3<f64> {
 /// or the vertex is in no triangle).
 fn vertex_normals(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<Vector3<f64>> {
     let mut normals = vec![Vector3::zeros(); positions.len()];
-    for t in triangles
-        .iter()
-        .filter(|t| t.iter().all(|&i| (i as usize) < positions.len()))
-    {
+    for t in triangles.iter().filter(|t| indexes(positions, t)) {
         let n = face_normal(positions, t);
         if n.iter().all(|c| c.is_finite()) {
             for &i in t {

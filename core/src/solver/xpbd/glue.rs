@@ -64,8 +64,10 @@ impl Glue {
             if !(flexible(a) && flexible(b)) {
                 continue;
             }
-            for (from, to) in [(a, b), (b, a)] {
-                attach_at_crossings(world, kept, (from, to), weld, &mut attachments);
+            if !weld.is_empty() {
+                for (from, to) in [(a, b), (b, a)] {
+                    attach_at_crossings(world, kept, (from, to), weld, &mut attachments);
+                }
             }
             for (from, to) in [(a, b), (b, a)] {
                 let Some(solid) = solids[to].as_mut() else {
