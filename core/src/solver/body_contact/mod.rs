@@ -153,6 +153,11 @@ pub struct BodyContact {
     /// Body pairs that never touch each other: articulated bodies sharing a joint node (see
     /// [`super::joints`]), as (lower, higher) body index.
     pub(crate) ignored_pairs: Vec<(usize, usize)>,
+    /// Per body: the assembly it belongs to, the lowest body index among the bodies glued to
+    /// it directly or through others (`xpbd::glue`); empty when nothing is glued. Two parts
+    /// of one assembly that touch at the start ignore each other: the glue holds them where
+    /// the artist put them, and a contact parting them would fight it for ever.
+    pub(crate) assemblies: Vec<usize>,
     meshes: Vec<BodyMesh>,
     pub(crate) colliders: Vec<StaticCollider>,
     /// Per node: the contact forces of this step (valid when `active`).
@@ -241,6 +246,11 @@ impl BodyContact {
         self.body_constraints
             && self.model == ContactModel::ElasticLayer
             && !self.layer_pairs.contains(&(a, b))
+    }
+
+    /// Whether bodies `a` and `b` are parts of one glued assembly (see `assemblies`).
+    pub(crate) fn same_assembly(&self, a: usize, b: usize) -> bool {
+        matches!((self.assemblies.get(a), self.assemblies.get(b)), (Some(x), Some(y)) if x == y)
     }
 
     /// Whether two bodies with surfaces can touch each other.
@@ -737,6 +747,13 @@ fn respond(
         _ => return,
     };
     let pair = a * bc.partner_slots() + b.unwrap_or(n_bodies + c);
+    if let Some(b) = b.filter(|&b| bc.step == 1 && bc.same_assembly(a, b)) {
+        // Parts of one glued assembly touching at the start (`assemblies`).
+        if !bc.contacts.is_empty() && !bc.ignored_pairs.contains(&(a, b)) {
+            bc.ignored_pairs.push((a, b));
+        }
+        bc.contacts.clear();
+    }
     if bc.contacts.is_empty() {
         if let Some(s) = bc.hertz_n2.get_mut(pair) {
             *s = None;

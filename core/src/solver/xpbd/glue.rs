@@ -94,7 +94,8 @@ impl Glue {
                 world.body_contact.ignored_pairs.push(pair);
             }
         }
-        let pairs = pairs.into_iter().zip(glued).collect();
+        let pairs: Vec<_> = pairs.into_iter().zip(glued).collect();
+        world.body_contact.assemblies = assemblies(world.bodies.len(), &pairs);
         Glue { attachments, pairs }
     }
 
@@ -129,6 +130,29 @@ impl Glue {
             }
         }
     }
+}
+
+/// Per body, the lowest index of the bodies glued to it directly or through others (itself
+/// when none); empty when no pair is glued.
+fn assemblies(bodies: usize, pairs: &[((usize, usize), bool)]) -> Vec<usize> {
+    if !pairs.iter().any(|&(_, glued)| glued) {
+        return Vec::new();
+    }
+    let mut root: Vec<usize> = (0..bodies).collect();
+    fn find(root: &mut [usize], mut b: usize) -> usize {
+        while root[b] != b {
+            root[b] = root[root[b]];
+            b = root[b];
+        }
+        b
+    }
+    for &((a, b), glued) in pairs {
+        if glued {
+            let (ra, rb) = (find(&mut root, a), find(&mut root, b));
+            root[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    (0..bodies).map(|b| find(&mut root, b)).collect()
 }
 
 /// Attach the corners of `from`'s cells that hold a crossing point of the pair at rest

@@ -127,6 +127,9 @@ pub(crate) struct Model {
     predicted: Vec<V3>,
     /// Per node: the body contacts' push beyond [`MAX_SEPARATION_SPEED`] this substep, m.
     shift: Vec<V3>,
+    /// Per assembly (indexed by its lowest body): the mass-weighted sum of `shift` and the
+    /// mass, then the shift itself (scratch of [`shift_nodes_bodies`]).
+    assembly_shift: Vec<(V3, f64)>,
     /// Per node: in a body contact at the first substep (parts that start touching or
     /// overlapping), until `separated_by` (a node free for a substep in between, as the parts
     /// part, must not meet its partner's layer again at full push).
@@ -336,6 +339,7 @@ impl Model {
             previous: vec![V3::zeros(); n],
             predicted: vec![V3::zeros(); n],
             shift: vec![V3::zeros(); n],
+            assembly_shift: Vec::new(),
             overlapping: vec![true; n],
             predicted_once: false,
             separated_by: Some(
@@ -869,35 +873,55 @@ fn shift_bodies(world: &mut World, model: &mut Model) -> f64 {
     shift_nodes_bodies(world, model)
 }
 
-/// [`shift_bodies`] of whatever `Model::shift` holds.
+/// [`shift_bodies`] of whatever `Model::shift` holds. The parts of a glued assembly
+/// (`BodyContact::assemblies`) move together by the assembly's mean: shifted one by one, the
+/// glue between them would pull them back with speed.
 fn shift_nodes_bodies(world: &mut World, model: &mut Model) -> f64 {
-    let mut work = 0.0;
     let gravity = world.settings.gravity;
     let nodes = &mut world.nodes;
-    for body in &world.bodies {
-        let (mut moment, mut mass) = (V3::zeros(), 0.0);
+    let assemblies = &world.body_contact.assemblies;
+    let group = |b: usize| assemblies.get(b).copied().unwrap_or(b);
+    let sums = &mut model.assembly_shift;
+    sums.clear();
+    sums.resize(world.bodies.len(), (V3::zeros(), 0.0));
+    for (b, body) in world.bodies.iter().enumerate() {
+        let (moment, mass) = &mut sums[group(b)];
         for i in body.nodes.clone() {
-            moment += model.shift[i] * nodes.mass[i];
-            mass += nodes.mass[i];
+            *moment += model.shift[i] * nodes.mass[i];
+            *mass += nodes.mass[i];
             model.shift[i] = V3::zeros();
         }
-        if mass <= 0.0 || moment == V3::zeros() {
+    }
+    let mut work = 0.0;
+    for (g, (moment, mass)) in sums.iter_mut().enumerate() {
+        if *mass <= 0.0 || *moment == V3::zeros() {
+            *moment = V3::zeros();
             continue;
         }
-        let mut shift = moment / mass;
-        // Not into a floor or wall the body rests on: the plane would put it back and the
+        let mut shift = *moment / *mass;
+        // Not into a floor or wall the assembly rests on: the plane would put it back and the
         // put-back would be speed (a stack of boxes touching at the start jumped at 1 m/s).
         for plane in &world.settings.planes {
             let into = shift.dot(&plane.normal);
-            let near = body
-                .nodes
-                .clone()
-                .any(|i| nodes.position[i].dot(&plane.normal) - plane.offset < model.shortest_edge);
-            if into < 0.0 && near {
+            let near = |i: usize| {
+                nodes.position[i].dot(&plane.normal) - plane.offset < model.shortest_edge
+            };
+            let resting = || {
+                (world.bodies.iter().enumerate())
+                    .any(|(b, body)| group(b) == g && body.nodes.clone().any(near))
+            };
+            if into < 0.0 && resting() {
                 shift -= plane.normal * into;
             }
         }
-        work -= mass * gravity.dot(&shift);
+        work -= *mass * gravity.dot(&shift);
+        *moment = shift;
+    }
+    for (b, body) in world.bodies.iter().enumerate() {
+        let shift = sums[group(b)].0;
+        if shift == V3::zeros() {
+            continue;
+        }
         for i in body.nodes.clone() {
             if model.inv_mass[i] > 0.0 {
                 nodes.position[i] += shift;

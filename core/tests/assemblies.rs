@@ -1,0 +1,128 @@
+//! Glued assemblies: parts that interpenetrate at the start are glued (`xpbd::glue`), and the
+//! parts glued to each other, directly or through others, form one assembly. Found on
+//! trimesh's `boolean.glb` (a block and 27 cutters, most sunk into it or each other, some
+//! face to face): a contact between two parts of one assembly pushed against the glue that
+//! held them, and the parting of an assembly from a part it rested on shifted its parts one
+//! by one against their glue; without gravity it gained 4 kJ in its first frame.
+#![allow(clippy::unwrap_used)]
+
+mod support;
+
+use springbake_core::material::Material;
+use springbake_core::nalgebra::Vector3;
+use springbake_core::shapes::box_mesh;
+use springbake_core::solver::{BodyHandle, FrameDiagnostics, Integrator, World, WorldSettings};
+use support::{add_part, mesh};
+
+const FRAME: f64 = 1.0 / 24.0;
+
+fn frame(w: &mut World, f: usize) -> FrameDiagnostics {
+    w.advance_frame(FRAME, f, &|| false).unwrap()
+}
+
+/// A rubber world without gravity or floor; parts of 0.5 m at 6 cells.
+fn weightless_world(rubber: &Material) -> World {
+    World::new(WorldSettings {
+        gravity: Vector3::zeros(),
+        layer: WorldSettings::default_layer(0.5 / 6.0, rubber, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    })
+}
+
+/// Add boxes `[lo, hi]` as parts named after their index.
+fn add_boxes(w: &mut World, rubber: &Material, boxes: &[([f64; 3], [f64; 3])]) -> Vec<BodyHandle> {
+    boxes
+        .iter()
+        .enumerate()
+        .map(|(i, &(lo, hi))| {
+            let m = mesh(box_mesh(lo, hi), 6);
+            add_part(w, &format!("part{i}"), &m, rubber)
+        })
+        .collect()
+}
+
+fn centre(w: &World, h: BodyHandle) -> Vector3<f64> {
+    let xs = w.body_positions(h);
+    xs.iter().sum::<Vector3<f64>>() / xs.len() as f64
+}
+
+/// A post sunk into a base and through a cap that lies face to face on the base: the post is
+/// glued to both, and the cap touches the base. Nothing moves them, so nothing moves.
+#[test]
+fn parts_of_one_assembly_touching_at_the_start_stay_where_they_are() {
+    let rubber = Material::preset("rubber").unwrap();
+    let mut w = weightless_world(&rubber);
+    let parts = add_boxes(
+        &mut w,
+        &rubber,
+        &[
+            ([0.0, 0.0, 0.0], [0.5, 0.5, 0.5]),      // base
+            ([0.15, 0.25, 0.15], [0.35, 0.9, 0.35]), // post, 0.25 m into the base
+            ([0.0, 0.5, 0.0], [0.5, 0.7, 0.5]),      // cap on the base, the post through it
+        ],
+    );
+    let glued: Vec<_> = w.interpenetrating_parts();
+    assert_eq!(glued.len(), 2, "{glued:?}");
+    assert!(glued
+        .iter()
+        .all(|p| p.2 && (p.0 == "part1" || p.1 == "part1")));
+    let start: Vec<_> = parts.iter().map(|&h| centre(&w, h)).collect();
+    let (mut fastest, mut energy) = (0.0f64, 0.0f64);
+    for f in 1..=12 {
+        let d = frame(&mut w, f);
+        fastest = fastest.max(d.max_speed);
+        energy = energy.max(d.kinetic_energy + d.elastic_energy);
+        assert_eq!(d.energy_gain, Some(0.0), "frame {f}");
+    }
+    let moved = (parts.iter().zip(&start))
+        .map(|(&h, s)| (centre(&w, h) - s).norm())
+        .fold(0.0, f64::max);
+    // 87 kg of rubber: a millijoule is a node at a few millimetres a second.
+    assert!(fastest < 1e-3, "fastest node {fastest} m/s");
+    assert!(energy < 1e-3, "{energy} J");
+    assert!(moved < 1e-4, "a part moved {moved} m");
+}
+
+/// The same post and base (glued) lying face to face on a slab they are not glued to: they
+/// part from it gently, the post staying in the base (shifted one by one, each glued part
+/// was pulled back to the other with speed).
+#[test]
+fn an_assembly_parts_from_what_it_touches_as_one() {
+    let rubber = Material::preset("rubber").unwrap();
+    let mut w = weightless_world(&rubber);
+    let parts = add_boxes(
+        &mut w,
+        &rubber,
+        &[
+            ([0.0, 0.0, 0.0], [0.5, 0.5, 0.5]),      // base
+            ([0.15, 0.25, 0.15], [0.35, 0.9, 0.35]), // post, 0.25 m into the base
+            ([-0.1, -0.3, -0.1], [0.6, 0.0, 0.6]),   // slab under the base, touching it
+        ],
+    );
+    let glued = w.interpenetrating_parts();
+    assert_eq!(glued, [("part0".into(), "part1".into(), true)]);
+    let offset0 = centre(&w, parts[1]) - centre(&w, parts[0]);
+    let (mut fastest, mut drift) = (0.0f64, 0.0f64);
+    for f in 1..=24 {
+        let d = frame(&mut w, f);
+        fastest = fastest.max(d.max_speed);
+        assert_eq!(d.energy_gain, Some(0.0), "frame {f}");
+        assert_eq!(d.inverted_cells, 0, "frame {f}");
+        drift = drift.max((centre(&w, parts[1]) - centre(&w, parts[0]) - offset0).norm());
+    }
+    assert!(fastest < 0.25, "fastest node {fastest} m/s");
+    assert!(drift < 2e-3, "the post moved {drift} m in the base");
+    // They did part: the slab's top is below the base's bottom.
+    let top = w
+        .body_positions(parts[2])
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::MIN, f64::max);
+    let bottom = w
+        .body_positions(parts[0])
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::MAX, f64::min);
+    assert!(bottom - top > 0.0, "gap {} m", bottom - top);
+}
