@@ -3,13 +3,15 @@
 //! trimesh's `boolean.glb` (a block and 27 cutters, most sunk into it or each other, some
 //! face to face): a contact between two parts of one assembly pushed against the glue that
 //! held them, and the parting of an assembly from a part it rested on shifted its parts one
-//! by one against their glue; without gravity it gained 4 kJ in its first frame.
+//! by one against their glue; without gravity it gained 4 kJ in its first frame. Parts that
+//! fit into each other (a peg in a hole of its own size: trimesh's `pins.glb`, dowels in a
+//! board) are welded where they touch.
 #![allow(clippy::unwrap_used)]
 
 mod support;
 
 use springbake_core::material::Material;
-use springbake_core::nalgebra::Vector3;
+use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::box_mesh;
 use springbake_core::solver::{BodyHandle, FrameDiagnostics, Integrator, World, WorldSettings};
 use support::{add_part, mesh};
@@ -125,4 +127,72 @@ fn an_assembly_parts_from_what_it_touches_as_one() {
         .map(|p| p.y)
         .fold(f64::MAX, f64::min);
     assert!(bottom - top > 0.0, "gap {} m", bottom - top);
+}
+
+/// A closed square ring around the z axis: outer half-width `outer`, a square hole of
+/// half-width `inner` through it, from z = 0 to `height`, wound outwards.
+fn ring(outer: f64, inner: f64, height: f64) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    let mut points = Vec::new();
+    for half in [outer, inner] {
+        for z in [0.0, height] {
+            points.extend(
+                corners
+                    .iter()
+                    .map(|&(x, y)| Point3::new(x * half, y * half, z)),
+            );
+        }
+    }
+    // Outer corner k at z index h is h * 4 + k; inner ones follow at 8.
+    let (o, i) = (
+        |k: usize, h: u32| h * 4 + (k % 4) as u32,
+        |k: usize, h: u32| 8 + h * 4 + (k % 4) as u32,
+    );
+    let mut triangles = Vec::new();
+    let mut quad = |a, b, c, d| triangles.extend([[a, b, c], [a, c, d]]);
+    for k in 0..4 {
+        quad(o(k, 0), o(k + 1, 0), o(k + 1, 1), o(k, 1));
+        quad(i(k, 0), i(k, 1), i(k + 1, 1), i(k + 1, 0));
+        quad(o(k, 1), o(k + 1, 1), i(k + 1, 1), i(k, 1));
+        quad(o(k, 0), i(k, 0), i(k + 1, 0), o(k + 1, 0));
+    }
+    (points, triangles)
+}
+
+/// A peg modelled in a hole of its own size, sticking out of it: the two are welded where
+/// they touch and, with nothing moving them, stay where they are (the contact pushed the peg
+/// in from all round, squeezing it and pumping energy into both). A block lying on the ring
+/// touches it but does not fit into it, and stays a contact.
+#[test]
+fn a_peg_in_a_hole_of_its_size_is_welded_to_it() {
+    let rubber = Material::preset("rubber").unwrap();
+    let mut w = weightless_world(&rubber);
+    let ring_mesh = mesh(ring(0.3, 0.1, 0.2), 6);
+    let board = add_part(&mut w, "board", &ring_mesh, &rubber);
+    let peg_mesh = mesh(box_mesh([-0.1, -0.1, 0.0], [0.1, 0.1, 0.5]), 6);
+    let peg = add_part(&mut w, "peg", &peg_mesh, &rubber);
+    assert_eq!(
+        w.interpenetrating_parts(),
+        [("board".into(), "peg".into(), true)]
+    );
+    let start = [centre(&w, board), centre(&w, peg)];
+    let (mut fastest, mut energy) = (0.0f64, 0.0f64);
+    for f in 1..=12 {
+        let d = frame(&mut w, f);
+        fastest = fastest.max(d.max_speed);
+        energy = energy.max(d.kinetic_energy + d.elastic_energy);
+        assert_eq!(d.energy_gain, Some(0.0), "frame {f}");
+    }
+    let moved = (centre(&w, board) - start[0])
+        .norm()
+        .max((centre(&w, peg) - start[1]).norm());
+    assert!(fastest < 1e-3, "fastest node {fastest} m/s");
+    assert!(energy < 1e-3, "{energy} J");
+    assert!(moved < 1e-4, "a part moved {moved} m");
+
+    let mut w = weightless_world(&rubber);
+    add_part(&mut w, "board", &ring_mesh, &rubber);
+    let lid = mesh(box_mesh([-0.3, -0.3, 0.2], [0.3, 0.3, 0.3]), 6);
+    add_part(&mut w, "lid", &lid, &rubber);
+    assert!(w.interpenetrating_parts().is_empty());
 }

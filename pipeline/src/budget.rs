@@ -305,15 +305,16 @@ fn smaller_unit_advice(unit: f64) -> String {
     }
 }
 
-/// Parts that interpenetrate at the start deeper than the contact layer reaches stop
-/// colliding with each other, and flexible ones are glued where they overlap (the XPBD
+/// Parts that interpenetrate at the start deeper than the contact layer reaches, or fit into
+/// each other, stop colliding with each other, and flexible ones are glued where they overlap (the XPBD
 /// solver's glue): name them, so a user who meant them to collide knows to move them apart.
 pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
     let pairs = prepared.world.interpenetrating_parts();
     let mut notes = Vec::new();
     for glued in [true, false] {
         let what = if glued {
-            "they are glued where they overlap and do not collide with each other"
+            "they are glued where they overlap (parts fitted into each other, a peg in its \
+             hole: where they touch) and do not collide with each other"
         } else {
             "they do not collide with each other; a rigid or particle body is not glued"
         };

@@ -21,7 +21,17 @@
 //! deep test, yet a part that pierces it can never be pushed out (trimesh's `chair_model.obj`:
 //! a wire loop through a double-sided bowl, each side's samples pushed by the other's two
 //! faces, fought each other until the chair shook at 9 m/s). The crossing points are where
-//! the glue ties the two. Two closed solids that overlap within the layer still separate.
+//! the glue ties the two.
+//!
+//! Two closed solids that fit into each other are welded where they touch: a dowel or bolt
+//! modelled in a hole of its own radius (a CAD assembly: trimesh's `pins.glb`), a peg through
+//! a slot. Their faces coincide, so every sample of the peg lies within the layer of the
+//! hole's wall and the contact pushes it in from all round; it cannot part them, only squeeze
+//! the peg and widen the hole, which pumped the layer's stored push into the cells (1 g
+//! dowels at 3 m/s). A pair fits when at least [`FIT_MIN_POINTS`] samples of the two lie
+//! within a layer of the other's faces and those faces' normals nearly cancel (their sum at
+//! most [`FIT_RESULTANT`] of their count; a box resting on another has 1). Other closed solids
+//! that touch or overlap within the layer still separate.
 
 use super::{BodyMesh, BEHIND_LAYERS};
 use crate::collide::geometry::{closest_on_triangle, segment_crosses_triangle};
@@ -36,6 +46,14 @@ type V3 = Vector3<f64>;
 /// small, so a point on a lattice plane that a box's edge also lies on is not counted on the
 /// edge; a second offset is tried when the first line passes through an edge anyway.
 const LINE_OFFSETS: [[f64; 2]; 2] = [[1.37e-5, 0.93e-5], [-0.61e-5, 1.71e-5]];
+
+/// Fewest samples of a pair within a layer of each other's faces that can make it a fit.
+const FIT_MIN_POINTS: usize = 8;
+
+/// Largest length of the sum of the touching faces' unit normals, over their count, for
+/// which a pair fits into each other (module docs): a peg in a hole is near 0, a part in a
+/// tight recess (its bottom and four walls touching) 0.2, a stack of boxes 1.
+const FIT_RESULTANT: f64 = 0.25;
 
 /// A body's display mesh at rest, for inside and distance queries.
 pub(crate) struct Solid {
@@ -116,6 +134,23 @@ impl Solid {
         }
     }
 
+    /// The unit normal of the triangle nearest `p`, if one comes within `r` (outward for a
+    /// mesh wound outwards).
+    fn nearest_normal(&mut self, p: &V3, r: f64) -> Option<V3> {
+        self.grid
+            .query(&p.add_scalar(-r), &p.add_scalar(r), &mut self.found);
+        let mut nearest: Option<(f64, V3)> = None;
+        for &t in &self.found {
+            let [a, b, c] = &self.triangles[t as usize];
+            let (w, _) = closest_on_triangle(p, a, b, c);
+            let d = (p - (a * w[0] + b * w[1] + c * w[2])).norm();
+            if d < r && nearest.is_none_or(|(e, _)| d < e) {
+                nearest = Some((d, (b - a).cross(&(c - a))));
+            }
+        }
+        nearest.and_then(|(_, n)| n.try_normalize(0.0))
+    }
+
     /// Whether some triangle of the mesh comes within `r` of `p`.
     fn near_surface(&mut self, p: &V3, r: f64) -> bool {
         self.grid
@@ -133,8 +168,11 @@ pub(crate) struct StartOverlaps {
     /// Body pairs `(lower, higher)` whose meshes overlap deeper than the layer, or cross
     /// where one is not closed.
     pub pairs: Vec<(usize, usize)>,
-    /// Per pair: the points where the meshes cross at rest.
+    /// Per pair: the points where the meshes cross at rest, or where they touch for a pair
+    /// that fits into each other.
     pub welds: Vec<Vec<V3>>,
+    /// Per pair: whether it is a fit (two closed solids touching all round), not an overlap.
+    pub fits: Vec<bool>,
     /// Per body: its mesh at rest, for the bodies of `pairs`.
     pub solids: Vec<Option<Solid>>,
 }
@@ -146,11 +184,12 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     let bc = &world.body_contact;
     let depth = BEHIND_LAYERS * world.settings.layer.thickness_m;
     let mut solids: Vec<Option<Solid>> = (0..world.bodies.len()).map(|_| None).collect();
-    let (mut pairs, mut welds) = (Vec::new(), Vec::new());
+    let (mut pairs, mut welds, mut fits) = (Vec::new(), Vec::new(), Vec::new());
     if bc.meshes.len() < 2 || depth.is_nan() || depth <= 0.0 {
         return StartOverlaps {
             pairs,
             welds,
+            fits,
             solids,
         };
     }
@@ -221,8 +260,22 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                     }
                 }
             }
-            if deep || !crossings.is_empty() {
+            let mut touching = Vec::new();
+            if !deep && crossings.is_empty() && meshes[i].closed && meshes[j].closed {
+                let region = (lo.add_scalar(-depth), hi.add_scalar(depth));
+                for (from, to, sense) in [(i, j, 1.0), (j, i, -1.0)] {
+                    let solid = solids[meshes[to].body].get_or_insert_with(|| solid_of(to));
+                    let points = &samples[meshes[from].body];
+                    touches(solid, points, region, (depth, sense), &mut touching);
+                }
+            }
+            let fit = fits_into(&touching);
+            if deep || !crossings.is_empty() || fit {
                 pairs.push((a, b));
+                fits.push(fit);
+                if fit {
+                    crossings.extend(touching.iter().map(|&(p, _)| p));
+                }
                 welds.push(crossings);
                 // Both sides' solids: the glue attaches each side's nodes inside the other.
                 for m in [i, j] {
@@ -240,8 +293,36 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     StartOverlaps {
         pairs,
         welds,
+        fits,
         solids,
     }
+}
+
+/// The samples among `points` inside `region` that lie within `r` of `solid`'s faces, each
+/// with the nearest face's unit normal times `sense` (so that both sides of a pair count
+/// their normals the same way round), pushed to `out`.
+fn touches(
+    solid: &mut Solid,
+    points: &[V3],
+    (lo, hi): (V3, V3),
+    (r, sense): (f64, f64),
+    out: &mut Vec<(V3, V3)>,
+) {
+    for p in points {
+        if (0..3).any(|k| p[k] < lo[k] || p[k] > hi[k]) {
+            continue;
+        }
+        if let Some(n) = solid.nearest_normal(p, r) {
+            out.push((*p, n * sense));
+        }
+    }
+}
+
+/// Whether the touching samples of a pair of closed solids, with their faces' normals (see
+/// [`touches`]), make it a fit (module docs).
+fn fits_into(touching: &[(V3, V3)]) -> bool {
+    let sum: V3 = touching.iter().map(|(_, n)| n).sum();
+    touching.len() >= FIT_MIN_POINTS && sum.norm() <= FIT_RESULTANT * touching.len() as f64
 }
 
 /// Per body: its contact samples at rest.

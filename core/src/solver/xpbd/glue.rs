@@ -53,10 +53,20 @@ impl Glue {
                 && !world.bodies[b].cells.is_empty()
         };
         let StartOverlaps {
-            pairs,
-            welds,
+            mut pairs,
+            mut welds,
+            fits,
             mut solids,
         } = start_overlaps(world);
+        // A rigid or particle part fitted into another keeps its contact (a dowel in a rigid
+        // board is held by the hole's walls); only flexible fits are welded.
+        let keep: Vec<bool> = (pairs.iter().zip(&fits))
+            .map(|(&(a, b), &fit)| !fit || (flexible(a) && flexible(b)))
+            .collect();
+        let mut kept_pair = keep.iter().copied();
+        pairs.retain(|_| kept_pair.next().unwrap_or(true));
+        let mut kept_weld = keep.iter().copied();
+        welds.retain(|_| kept_weld.next().unwrap_or(true));
         let mut attachments = Vec::new();
         let mut glued = Vec::new();
         for (&(a, b), weld) in pairs.iter().zip(&welds) {
