@@ -306,8 +306,9 @@ fn smaller_unit_advice(unit: f64) -> String {
 }
 
 /// Parts that interpenetrate at the start deeper than the contact layer reaches, or fit into
-/// each other, stop colliding with each other, and flexible ones are glued where they overlap (the XPBD
-/// solver's glue): name them, so a user who meant them to collide knows to move them apart.
+/// each other, stop colliding with each other, and flexible ones are glued where they overlap
+/// or touch (the XPBD solver's glue): name them, so a user who meant them to collide knows to
+/// move them apart.
 pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
     let pairs = prepared.world.interpenetrating_parts();
     let mut notes = Vec::new();

@@ -53,20 +53,17 @@ impl Glue {
                 && !world.bodies[b].cells.is_empty()
         };
         let StartOverlaps {
-            mut pairs,
-            mut welds,
+            pairs,
+            welds,
             fits,
             mut solids,
         } = start_overlaps(world);
         // A rigid or particle part fitted into another keeps its contact (a dowel in a rigid
         // board is held by the hole's walls); only flexible fits are welded.
-        let keep: Vec<bool> = (pairs.iter().zip(&fits))
-            .map(|(&(a, b), &fit)| !fit || (flexible(a) && flexible(b)))
-            .collect();
-        let mut kept_pair = keep.iter().copied();
-        pairs.retain(|_| kept_pair.next().unwrap_or(true));
-        let mut kept_weld = keep.iter().copied();
-        welds.retain(|_| kept_weld.next().unwrap_or(true));
+        let (pairs, welds): (Vec<_>, Vec<_>) = (pairs.into_iter().zip(welds).zip(fits))
+            .filter(|&(((a, b), _), fit)| !fit || (flexible(a) && flexible(b)))
+            .map(|(pair_weld, _)| pair_weld)
+            .unzip();
         let mut attachments = Vec::new();
         let mut glued = Vec::new();
         for (&(a, b), weld) in pairs.iter().zip(&welds) {
