@@ -114,3 +114,64 @@ fn a_rod_through_an_open_tray_is_welded_to_it() {
     // The 20 cm of rubber rod outside the tray bends under its weight (3 cm at its centre).
     assert!(drift < 0.05, "the rod moved {drift} m against the tray");
 }
+
+/// The triangles of `triangles` that `keep` takes, with only the points they use.
+fn part_of(
+    (points, triangles): &(Vec<Point3<f64>>, Vec<[u32; 3]>),
+    keep: impl Fn(&[Point3<f64>; 3]) -> bool,
+) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let mut index = vec![None; points.len()];
+    let mut kept_points = Vec::new();
+    let mut kept = Vec::new();
+    for t in triangles {
+        if !keep(&t.map(|i| points[i as usize])) {
+            continue;
+        }
+        kept.push(t.map(|i| {
+            *index[i as usize].get_or_insert_with(|| {
+                kept_points.push(points[i as usize]);
+                kept_points.len() as u32 - 1
+            })
+        }));
+    }
+    (kept_points, kept)
+}
+
+/// A box written as two meshes split along its rim (its top face, and its other five
+/// faces), as a voxel export or a DCC splitting by material writes a block (`McUsd.usda`):
+/// neither is closed, so neither is inside the other and they do not cross, yet the lid's
+/// edge lies on the sides' rim, inside their contact layer. The two are welded along it and
+/// fall and bounce as one box.
+#[test]
+fn a_box_split_along_its_rim_into_two_meshes_is_welded_there() {
+    let rubber = Material::preset("rubber").unwrap();
+    let whole = box_mesh([0.0, 0.3, 0.0], [0.5, 0.8, 0.5]);
+    let on_top = |t: &[Point3<f64>; 3]| t.iter().all(|p| p.y == 0.8);
+    let sides = mesh(part_of(&whole, |t| !on_top(t)), 6);
+    let lid = mesh(part_of(&whole, on_top), 6);
+    let mut w = floored_world(&rubber, sides.lattice.cell_size);
+    let sides_h = add_part(&mut w, "sides", &sides, &rubber);
+    let lid_h = add_part(&mut w, "lid", &lid, &rubber);
+    let pair = ("sides".to_string(), "lid".to_string(), true);
+    assert_eq!(w.interpenetrating_parts(), [pair]);
+    // The lid's corners against the sides' top corners.
+    let apart = |w: &World| {
+        let top = |m: &Mesh, h: BodyHandle| {
+            let points = display(w, m, h);
+            let ys = points.iter().filter(|p| p.y > 0.55).map(|p| p.coords);
+            ys.sum::<Vector3<f64>>() / 4.0
+        };
+        (top(&lid, lid_h) - top(&sides, sides_h)).norm()
+    };
+    let (mut fastest, mut gap) = (0.0f64, 0.0f64);
+    for f in 1..=36 {
+        let d = w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
+        fastest = fastest.max(d.max_speed);
+        assert_eq!(d.energy_gain, Some(0.0), "frame {f}");
+        assert_eq!(d.inverted_cells, 0, "frame {f}");
+        gap = gap.max(apart(&w));
+    }
+    // 0.3 m of fall is 2.4 m/s.
+    assert!(fastest < 3.0, "fastest node {fastest} m/s");
+    assert!(gap < 0.01, "the lid's corners moved {gap} m off the rim");
+}

@@ -47,6 +47,13 @@ type V3 = Vector3<f64>;
 /// edge; a second offset is tried when the first line passes through an edge anyway.
 const LINE_OFFSETS: [[f64; 2]; 2] = [[1.37e-5, 0.93e-5], [-0.61e-5, 1.71e-5]];
 
+/// Fewest points of an open mesh's boundary on another's surface that make a seam.
+const SEAM_MIN_POINTS: usize = 3;
+
+/// How near another surface a point of an open mesh's boundary must be to lie on it, in
+/// boundary sample spacings: the two were one mesh, split along that edge.
+const SEAM_TOLERANCE: f64 = 1e-6;
+
 /// Fewest samples of a pair within a layer of each other's faces that can make it a fit.
 const FIT_MIN_POINTS: usize = 8;
 
@@ -171,7 +178,9 @@ pub(crate) struct StartOverlaps {
     /// Per pair: the points where the meshes cross at rest, or where they touch for a pair
     /// that fits into each other.
     pub welds: Vec<Vec<V3>>,
-    /// Per pair: whether it is a fit (two closed solids touching all round), not an overlap.
+    /// Per pair: whether it is welded where it touches (a fit: two closed solids touching
+    /// all round; a seam: an open mesh's boundary on the other's surface), not where the two
+    /// overlap or cross.
     pub fits: Vec<bool>,
     /// Per body: its mesh at rest, for the bodies of `pairs`.
     pub solids: Vec<Option<Solid>>,
@@ -260,6 +269,24 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                     }
                 }
             }
+            let mut seam = Vec::new();
+            if !deep && crossings.is_empty() && !(meshes[i].closed && meshes[j].closed) {
+                for (from, to) in [(i, j), (j, i)] {
+                    if meshes[from].closed {
+                        continue;
+                    }
+                    let solid = solids[meshes[to].body].get_or_insert_with(|| solid_of(to));
+                    let edges = boundary_edges(&vertices[from], &meshes[from].display);
+                    let spacing = 0.5 * meshes[from].cell;
+                    on_surface(
+                        solid,
+                        &edges,
+                        (spacing, SEAM_TOLERANCE * spacing),
+                        &mut seam,
+                    );
+                }
+            }
+            let is_seam = seam.len() >= SEAM_MIN_POINTS;
             let mut touching = Vec::new();
             if !deep && crossings.is_empty() && meshes[i].closed && meshes[j].closed {
                 let region = (lo.add_scalar(-depth), hi.add_scalar(depth));
@@ -270,11 +297,13 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                 }
             }
             let fit = fits_into(&touching);
-            if deep || !crossings.is_empty() || fit {
+            if deep || !crossings.is_empty() || fit || is_seam {
                 pairs.push((a, b));
-                fits.push(fit);
+                fits.push(fit || is_seam);
                 if fit {
                     crossings.extend(touching.iter().map(|&(p, _)| p));
+                } else if is_seam {
+                    crossings.append(&mut seam);
                 }
                 welds.push(crossings);
                 // Both sides' solids: the glue attaches each side's nodes inside the other.
@@ -314,6 +343,60 @@ fn touches(
         }
         if let Some(n) = solid.nearest_normal(p, r) {
             out.push((*p, n * sense));
+        }
+    }
+}
+
+/// The boundary edges of the mesh `triangles` over `vertices` (edges walked by one triangle
+/// only, corners at the same position taken as one vertex), as corner pairs.
+fn boundary_edges(vertices: &[V3], triangles: &[[u32; 3]]) -> Vec<(V3, V3)> {
+    use std::collections::HashMap;
+    let key = |p: &V3| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    let welded: Vec<u32> = (vertices.iter())
+        .map(|p| {
+            let next = ids.len() as u32;
+            *ids.entry(key(p)).or_insert(next)
+        })
+        .collect();
+    let mut walks: HashMap<(u32, u32), (u32, usize, usize)> = HashMap::new();
+    for t in triangles {
+        for e in 0..3 {
+            let (p, q) = (t[e] as usize, t[(e + 1) % 3] as usize);
+            let (u, v) = (welded[p], welded[q]);
+            let edge = if u < v { (u, v) } else { (v, u) };
+            walks.entry(edge).or_insert((0, p, q)).0 += 1;
+        }
+    }
+    let mut edges: Vec<(V3, V3)> = (walks.into_values())
+        .filter(|&(n, _, _)| n == 1)
+        .map(|(_, p, q)| (vertices[p], vertices[q]))
+        .collect();
+    // The map's order is not the same from run to run; the welds must be.
+    edges.sort_by(|a, b| {
+        let key = |e: &(V3, V3)| [e.0.x, e.0.y, e.0.z, e.1.x, e.1.y, e.1.z];
+        key(a)
+            .partial_cmp(&key(b))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    edges
+}
+
+/// Points along `edges`, at most `spacing` apart and including their ends, that lie within
+/// `tolerance` of `solid`'s faces, pushed to `out`.
+fn on_surface(
+    solid: &mut Solid,
+    edges: &[(V3, V3)],
+    (spacing, tolerance): (f64, f64),
+    out: &mut Vec<V3>,
+) {
+    for (p0, p1) in edges {
+        let pieces = ((p1 - p0).norm() / spacing).ceil().clamp(1.0, 1e4) as usize;
+        for k in 0..=pieces {
+            let p = p0 + (p1 - p0) * (k as f64 / pieces as f64);
+            if solid.near_surface(&p, tolerance) {
+                out.push(p);
+            }
         }
     }
 }
