@@ -32,6 +32,12 @@
 //! within a layer of the other's faces and those faces' normals nearly cancel (their sum at
 //! most [`FIT_RESULTANT`] of their count; a box resting on another has 1). Other closed solids
 //! that touch or overlap within the layer still separate.
+//!
+//! An open mesh whose boundary lies on another's surface at rest was split from it: a block
+//! written as its top face and its other five faces (a voxel export: `McUsd.usda`; a DCC
+//! splitting a mesh by material). The lid's edge lies inside the sides' layer, which shot it
+//! off at 20 m/s. Points along such boundary edges that lie on the other surface (at least
+//! [`SEAM_MIN_POINTS`]) weld the pair.
 
 use super::{BodyMesh, BEHIND_LAYERS};
 use crate::collide::geometry::{closest_on_triangle, segment_crosses_triangle};
