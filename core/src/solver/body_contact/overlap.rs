@@ -187,24 +187,24 @@ pub(crate) struct StartOverlaps {
     /// Per pair: whether it is welded where it touches (a fit: two closed solids touching
     /// all round; a seam: an open mesh's boundary on the other's surface), not where the two
     /// overlap or cross.
-    pub fits: Vec<bool>,
+    pub touch_welded: Vec<bool>,
     /// Per body: its mesh at rest, for the bodies of `pairs`.
     pub solids: Vec<Option<Solid>>,
 }
 
 /// The body pairs of `world` whose display meshes overlap deeper than the contact layer at
-/// rest, or cross where one is not closed (module docs), among the bodies with a collision
-/// mesh.
+/// rest, cross where one is not closed, fit into each other or meet along a seam (module
+/// docs), among the bodies with a collision mesh.
 pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     let bc = &world.body_contact;
     let depth = BEHIND_LAYERS * world.settings.layer.thickness_m;
     let mut solids: Vec<Option<Solid>> = (0..world.bodies.len()).map(|_| None).collect();
-    let (mut pairs, mut welds, mut fits) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut pairs, mut welds, mut touch_welded) = (Vec::new(), Vec::new(), Vec::new());
     if bc.meshes.len() < 2 || depth.is_nan() || depth <= 0.0 {
         return StartOverlaps {
             pairs,
             welds,
-            fits,
+            touch_welded,
             solids,
         };
     }
@@ -230,6 +230,7 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     };
     let boxes: Vec<(V3, V3)> = vertices.iter().map(|v| bounds(v)).collect();
     let samples = rest_samples(world);
+    let mut boundaries: Vec<Option<Vec<(V3, V3)>>> = vec![None; meshes.len()];
     let solid_of = |m: usize| {
         let v = &vertices[m];
         let corners = meshes[m].display.iter().map(|t| t.map(|k| v[k as usize]));
@@ -282,14 +283,12 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
                         continue;
                     }
                     let solid = solids[meshes[to].body].get_or_insert_with(|| solid_of(to));
-                    let edges = boundary_edges(&vertices[from], &meshes[from].display);
+                    let edges = boundaries[from].get_or_insert_with(|| {
+                        boundary_edges(&vertices[from], &meshes[from].display)
+                    });
                     let spacing = 0.5 * meshes[from].cell;
-                    on_surface(
-                        solid,
-                        &edges,
-                        (spacing, SEAM_TOLERANCE * spacing),
-                        &mut seam,
-                    );
+                    let tolerance = SEAM_TOLERANCE * spacing;
+                    on_surface(solid, edges, (spacing, tolerance), &mut seam);
                 }
             }
             let is_seam = seam.len() >= SEAM_MIN_POINTS;
@@ -305,7 +304,7 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
             let fit = fits_into(&touching);
             if deep || !crossings.is_empty() || fit || is_seam {
                 pairs.push((a, b));
-                fits.push(fit || is_seam);
+                touch_welded.push(fit || is_seam);
                 if fit {
                     crossings.extend(touching.iter().map(|&(p, _)| p));
                 } else if is_seam {
@@ -328,7 +327,7 @@ pub(crate) fn start_overlaps(world: &World) -> StartOverlaps {
     StartOverlaps {
         pairs,
         welds,
-        fits,
+        touch_welded,
         solids,
     }
 }
@@ -356,7 +355,7 @@ fn touches(
 /// The boundary edges of the mesh `triangles` over `vertices` (edges walked by one triangle
 /// only, corners at the same position taken as one vertex), as corner pairs.
 fn boundary_edges(vertices: &[V3], triangles: &[[u32; 3]]) -> Vec<(V3, V3)> {
-    use std::collections::HashMap;
+    use std::collections::{BTreeMap, HashMap};
     let key = |p: &V3| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
     let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
     let welded: Vec<u32> = (vertices.iter())
@@ -365,7 +364,7 @@ fn boundary_edges(vertices: &[V3], triangles: &[[u32; 3]]) -> Vec<(V3, V3)> {
             *ids.entry(key(p)).or_insert(next)
         })
         .collect();
-    let mut walks: HashMap<(u32, u32), (u32, usize, usize)> = HashMap::new();
+    let mut walks: BTreeMap<(u32, u32), (u32, usize, usize)> = BTreeMap::new();
     for t in triangles {
         for e in 0..3 {
             let (p, q) = (t[e] as usize, t[(e + 1) % 3] as usize);
@@ -374,18 +373,10 @@ fn boundary_edges(vertices: &[V3], triangles: &[[u32; 3]]) -> Vec<(V3, V3)> {
             walks.entry(edge).or_insert((0, p, q)).0 += 1;
         }
     }
-    let mut edges: Vec<(V3, V3)> = (walks.into_values())
+    (walks.into_values())
         .filter(|&(n, _, _)| n == 1)
         .map(|(_, p, q)| (vertices[p], vertices[q]))
-        .collect();
-    // The map's order is not the same from run to run; the welds must be.
-    edges.sort_by(|a, b| {
-        let key = |e: &(V3, V3)| [e.0.x, e.0.y, e.0.z, e.1.x, e.1.y, e.1.z];
-        key(a)
-            .partial_cmp(&key(b))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    edges
+        .collect()
 }
 
 /// Points along `edges`, at most `spacing` apart and including their ends, that lie within

@@ -55,12 +55,12 @@ impl Glue {
         let StartOverlaps {
             pairs,
             welds,
-            fits,
+            touch_welded,
             mut solids,
         } = start_overlaps(world);
-        // A rigid or particle part fitted into another keeps its contact (a dowel in a rigid
-        // board is held by the hole's walls); only flexible fits are welded.
-        let (pairs, welds): (Vec<_>, Vec<_>) = (pairs.into_iter().zip(welds).zip(fits))
+        // A rigid or particle part fitted into another, or on a seam, keeps its contact (a
+        // dowel in a rigid board is held by the hole's walls); only flexible ones are welded.
+        let (pairs, welds): (Vec<_>, Vec<_>) = (pairs.into_iter().zip(welds).zip(touch_welded))
             .filter(|&(((a, b), _), fit)| !fit || (flexible(a) && flexible(b)))
             .map(|(pair_weld, _)| pair_weld)
             .unzip();
