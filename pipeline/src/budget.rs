@@ -314,8 +314,8 @@ pub fn interpenetrating_parts_notes(prepared: &mut Prepared) -> Vec<String> {
     let mut notes = Vec::new();
     for glued in [true, false] {
         let what = if glued {
-            "they are glued where they overlap (parts fitted into each other, a peg in its \
-             hole: where they touch) and do not collide with each other"
+            "they are glued where they overlap or touch (a peg in its hole, a mesh split \
+             along a seam) and do not collide with each other"
         } else {
             "they do not collide with each other; a rigid or particle body is not glued"
         };
