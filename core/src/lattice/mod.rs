@@ -146,6 +146,15 @@ pub fn cell_is_inverted(nodes: &[u32; 8], positions: &[Point3<f64>]) -> bool {
 }
 
 fn islands(nodes: usize, springs: &[Spring]) -> (Vec<u32>, usize) {
+    connected_components(nodes, springs.iter().map(|s| (s.a, s.b)))
+}
+
+/// The connected components of a graph of `nodes` nodes and `edges`: each node's component,
+/// numbered from 0 in the order of their lowest node, and how many there are (union–find).
+pub(crate) fn connected_components(
+    nodes: usize,
+    edges: impl IntoIterator<Item = (u32, u32)>,
+) -> (Vec<u32>, usize) {
     let mut parent: Vec<u32> = (0..nodes as u32).collect();
     fn find(parent: &mut [u32], mut x: u32) -> u32 {
         while parent[x as usize] != x {
@@ -154,14 +163,14 @@ fn islands(nodes: usize, springs: &[Spring]) -> (Vec<u32>, usize) {
         }
         x
     }
-    for s in springs {
-        let (ra, rb) = (find(&mut parent, s.a), find(&mut parent, s.b));
+    for (a, b) in edges {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
         if ra != rb {
             parent[ra.max(rb) as usize] = ra.min(rb);
         }
     }
     let mut label = vec![u32::MAX; nodes];
-    let mut island_of_node = vec![0; nodes];
+    let mut component = vec![0; nodes];
     let mut count = 0u32;
     for n in 0..nodes as u32 {
         let r = find(&mut parent, n);
@@ -169,7 +178,7 @@ fn islands(nodes: usize, springs: &[Spring]) -> (Vec<u32>, usize) {
             label[r as usize] = count;
             count += 1;
         }
-        island_of_node[n as usize] = label[r as usize];
+        component[n as usize] = label[r as usize];
     }
-    (island_of_node, count as usize)
+    (component, count as usize)
 }

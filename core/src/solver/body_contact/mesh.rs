@@ -257,14 +257,7 @@ pub(super) fn closed_outward(positions: &[Point3<f64>], triangles: &[[u32; 3]]) 
     if triangles.is_empty() {
         return false;
     }
-    // `+ 0.0` turns −0 into 0, so both weld.
-    let key = |p: &Point3<f64>| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
-    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
-    let mut welded = Vec::with_capacity(positions.len());
-    for p in positions {
-        let next = ids.len() as u32;
-        welded.push(*ids.entry(key(p)).or_insert(next));
-    }
+    let welded = weld_positions(positions.iter().map(|p| p.coords));
     let mut walks: HashMap<(u32, u32), u32> = HashMap::new();
     let mut volume = 0.0;
     for t in triangles {
@@ -288,6 +281,21 @@ pub(super) fn closed_outward(positions: &[Point3<f64>], triangles: &[[u32; 3]]) 
         .iter()
         .all(|(&(u, v), &n)| n == 1 && walks.get(&(v, u)) == Some(&1));
     paired && volume > 0.0
+}
+
+/// Per position, an index shared by all positions equal to it (corners a DCC's export split
+/// at seams and hard edges taken as one vertex), numbered in order of first appearance.
+pub(super) fn weld_positions(positions: impl Iterator<Item = Vector3<f64>>) -> Vec<u32> {
+    use std::collections::HashMap;
+    // `+ 0.0` turns −0 into 0, so both weld.
+    let key = |p: Vector3<f64>| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    positions
+        .map(|p| {
+            let next = ids.len() as u32;
+            *ids.entry(key(p)).or_insert(next)
+        })
+        .collect()
 }
 
 /// Most halvings of one display triangle by [`refine`] (at most 2¹² pieces: a triangle 64

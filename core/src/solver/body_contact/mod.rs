@@ -153,8 +153,8 @@ pub struct BodyContact {
     /// Body pairs that never touch each other: articulated bodies sharing a joint node (see
     /// [`super::joints`]), as (lower, higher) body index.
     pub(crate) ignored_pairs: Vec<(usize, usize)>,
-    /// Per body: the assembly it belongs to, the lowest body index among the bodies glued to
-    /// it directly or through others (`xpbd::glue`); empty when nothing is glued. Two parts
+    /// Per body: the assembly it belongs to (the bodies glued to it directly or through
+    /// others share one, numbered from 0; `xpbd::glue`); empty when nothing is glued. Two parts
     /// of one assembly that touch at the start ignore each other: the glue holds them where
     /// the artist put them, and a contact parting them would fight it for ever.
     pub(crate) assemblies: Vec<usize>,

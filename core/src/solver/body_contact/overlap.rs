@@ -39,6 +39,7 @@
 //! off at 20 m/s. Points along such boundary edges that lie on the other surface (at least
 //! [`SEAM_MIN_POINTS`]) weld the pair.
 
+use super::mesh::weld_positions;
 use super::{BodyMesh, BEHIND_LAYERS};
 use crate::collide::geometry::{closest_on_triangle, segment_crosses_triangle};
 use crate::collide::BoxGrid;
@@ -355,15 +356,8 @@ fn touches(
 /// The boundary edges of the mesh `triangles` over `vertices` (edges walked by one triangle
 /// only, corners at the same position taken as one vertex), as corner pairs.
 fn boundary_edges(vertices: &[V3], triangles: &[[u32; 3]]) -> Vec<(V3, V3)> {
-    use std::collections::{BTreeMap, HashMap};
-    let key = |p: &V3| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
-    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
-    let welded: Vec<u32> = (vertices.iter())
-        .map(|p| {
-            let next = ids.len() as u32;
-            *ids.entry(key(p)).or_insert(next)
-        })
-        .collect();
+    use std::collections::BTreeMap;
+    let welded = weld_positions(vertices.iter().copied());
     let mut walks: BTreeMap<(u32, u32), (u32, usize, usize)> = BTreeMap::new();
     for t in triangles {
         for e in 0..3 {

@@ -139,27 +139,16 @@ impl Glue {
     }
 }
 
-/// Per body, the lowest index of the bodies glued to it directly or through others (itself
-/// when none); empty when no pair is glued.
+/// Per body, its assembly: the bodies glued to it directly or through others share one,
+/// numbered in the order of their lowest body; empty when no pair is glued.
 fn assemblies(bodies: usize, pairs: &[((usize, usize), bool)]) -> Vec<usize> {
     if !pairs.iter().any(|&(_, glued)| glued) {
         return Vec::new();
     }
-    let mut root: Vec<usize> = (0..bodies).collect();
-    fn find(root: &mut [usize], mut b: usize) -> usize {
-        while root[b] != b {
-            root[b] = root[root[b]];
-            b = root[b];
-        }
-        b
-    }
-    for &((a, b), glued) in pairs {
-        if glued {
-            let (ra, rb) = (find(&mut root, a), find(&mut root, b));
-            root[ra.max(rb)] = ra.min(rb);
-        }
-    }
-    (0..bodies).map(|b| find(&mut root, b)).collect()
+    let glued = (pairs.iter()).filter(|&&(_, glued)| glued);
+    let edges = glued.map(|&((a, b), _)| (a as u32, b as u32));
+    let (assembly, _) = crate::lattice::connected_components(bodies, edges);
+    assembly.into_iter().map(|g| g as usize).collect()
 }
 
 /// Attach the corners of `from`'s cells that hold a crossing point of the pair at rest

@@ -127,7 +127,7 @@ pub(crate) struct Model {
     predicted: Vec<V3>,
     /// Per node: the body contacts' push beyond [`MAX_SEPARATION_SPEED`] this substep, m.
     shift: Vec<V3>,
-    /// Per assembly (indexed by its lowest body): the mass-weighted sum of `shift` and the
+    /// Per assembly (`BodyContact::assemblies`): the mass-weighted sum of `shift` and the
     /// mass, then the shift itself (scratch of [`shift_nodes_bodies`]).
     assembly_shift: Vec<(V3, f64)>,
     /// Per node: in a body contact at the first substep (parts that start touching or
