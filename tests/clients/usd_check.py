@@ -6,8 +6,8 @@ Usage: python usd_check.py FILE.usda [FILE.usdc ...]
 Prints one JSON line: {file: [problems]} (an empty list is a pass). Beyond the validators:
 upAxis, metersPerUnit, timeCodesPerSecond, framesPerSecond, startTimeCode and endTimeCode
 authored; one flat layer (no sublayers, references or payloads); every mesh with time-sampled
-points has `subdivisionScheme = "none"` authored, an `extent` sample at each points sample,
-and normals either left out or sampled at the same times.
+points has `subdivisionScheme = "none"` authored, an `extent` sample at each points sample
+that is the points' bounds there (renderers cull by it), and normals either left out or sampled at the same times.
 """
 
 import json
@@ -45,6 +45,14 @@ def check(path):
             problems.append("%s: subdivisionScheme is not 'none'" % where)
         if mesh.GetExtentAttr().GetTimeSamples() != times:
             problems.append("%s: extent is not sampled with the points" % where)
+        for t in times:
+            want = UsdGeom.PointBased.ComputeExtent(mesh.GetPointsAttr().Get(t))
+            got = mesh.GetExtentAttr().Get(t)
+            if got is None or any(abs(g[k] - w[k]) > 1e-5 * (1 + abs(w[k]))
+                                  for g, w in zip(got, want) for k in range(3)):
+                problems.append("%s: extent at %g is %s, not the points' bounds %s"
+                                % (where, t, got, want))
+                break
         normals = mesh.GetNormalsAttr()
         if normals.HasAuthoredValue() and normals.GetTimeSamples() != times:
             problems.append("%s: normals are authored but not animated with the points" % where)

@@ -557,7 +557,11 @@ def _author_frames(mesh, item, frame_count, location):
     n = item["point_count"]
     stride = n * 3 * 4
     points = item["points"]
-    extents = item["extents"]
+    # Per frame the lowest and highest corner, six f32s (not the raw bytes: slicing those
+    # gave Gf.Vec3f byte values, so every sampled extent was garbage and renderers culled).
+    extents = memoryview(item["extents"]).cast("B").cast("f")
+    if len(extents) != 6 * frame_count:
+        raise BridgeError("extent data has the wrong size", location + ".extent")
     normals = item.get("normals")
     normal_count = item.get("normal_count", 0)
     if len(points) != stride * frame_count:
@@ -577,8 +581,8 @@ def _author_frames(mesh, item, frame_count, location):
     for f in range(frame_count):
         t = Usd.TimeCode(float(f))
         points_attr.Set(_vec3f_array(points[f * stride:(f + 1) * stride], n), t)
-        lo = extents[f * 6:f * 6 + 3]
-        hi = extents[f * 6 + 3:f * 6 + 6]
+        lo = extents[f * 6:f * 6 + 3].tolist()
+        hi = extents[f * 6 + 3:f * 6 + 6].tolist()
         extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo), Gf.Vec3f(*hi)]), t)
         if normals_attr is not None:
             normals_attr.Set(
