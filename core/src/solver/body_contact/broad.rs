@@ -60,7 +60,7 @@ pub(super) fn pairs_in_reach(bc: &BodyContact, h: f64, dt: f64) -> Vec<PairInRea
 
 /// Bodies `a < b` when they may touch in the step (the exact test): their boxes lie within
 /// the reach plus the pair's travel on every axis, within `2h` of each other, the pair is
-/// not ignored and one of them has faces; with the region `[lo, hi]` (both boxes grown by
+/// not one that never touches (`BodyContact::never_touch`) and one of them has faces; with the region `[lo, hi]` (both boxes grown by
 /// `h`) the searches look in.
 fn pair_in_reach(bc: &BodyContact, (a, b): (usize, usize), h: f64, dt: f64) -> Option<PairInReach> {
     let reach = h.max(BEHIND_LAYERS * h);
@@ -71,7 +71,7 @@ fn pair_in_reach(bc: &BodyContact, (a, b): (usize, usize), h: f64, dt: f64) -> O
     let apart = gap.is_nan()
         || gap > reach + bc.sweep(a, b, dt)
         || (0..3).any(|k| lo[k] > hi[k])
-        || bc.ignored_pairs.contains(&(a, b));
+        || bc.never_touch(a, b);
     let has_faces = bc.mesh_of[a].is_some() || bc.mesh_of[b].is_some();
     (!apart && has_faces).then_some((a, b, lo, hi))
 }

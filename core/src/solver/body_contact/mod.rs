@@ -154,9 +154,12 @@ pub struct BodyContact {
     /// [`super::joints`]), as (lower, higher) body index.
     pub(crate) ignored_pairs: Vec<(usize, usize)>,
     /// Per body: the assembly it belongs to (the bodies glued to it directly or through
-    /// others share one, numbered from 0; `xpbd::glue`); empty when nothing is glued. Two parts
-    /// of one assembly that touch at the start ignore each other: the glue holds them where
-    /// the artist put them, and a contact parting them would fight it for ever.
+    /// others share one, numbered from 0; `xpbd::glue`); empty when nothing is glued. The
+    /// parts of one assembly never touch each other: it is one object, and, as a single
+    /// body's cells, its parts do not collide with each other. A contact between two of them
+    /// fights the glue that holds both (two parts touching at the start, pushed apart for
+    /// ever; a part glued to a sagging sheet and pushed off the sheet's glued neighbour
+    /// under it, which made `McUsd.usda`'s ground explode at 55 m/s).
     pub(crate) assemblies: Vec<usize>,
     meshes: Vec<BodyMesh>,
     pub(crate) colliders: Vec<StaticCollider>,
@@ -251,6 +254,11 @@ impl BodyContact {
     /// Whether bodies `a` and `b` are parts of one glued assembly (see `assemblies`).
     pub(crate) fn same_assembly(&self, a: usize, b: usize) -> bool {
         matches!((self.assemblies.get(a), self.assemblies.get(b)), (Some(x), Some(y)) if x == y)
+    }
+
+    /// Whether bodies `a < b` never touch: an ignored pair, or two parts of one assembly.
+    pub(crate) fn never_touch(&self, a: usize, b: usize) -> bool {
+        self.same_assembly(a, b) || self.ignored_pairs.contains(&(a, b))
     }
 
     /// Whether two bodies with surfaces can touch each other.
@@ -747,13 +755,6 @@ fn respond(
         _ => return,
     };
     let pair = a * bc.partner_slots() + b.unwrap_or(n_bodies + c);
-    if let Some(b) = b.filter(|&b| bc.step == 1 && bc.same_assembly(a, b)) {
-        // Parts of one glued assembly touching at the start (`assemblies`).
-        if !bc.contacts.is_empty() && !bc.ignored_pairs.contains(&(a, b)) {
-            bc.ignored_pairs.push((a, b));
-        }
-        bc.contacts.clear();
-    }
     if bc.contacts.is_empty() {
         if let Some(s) = bc.hertz_n2.get_mut(pair) {
             *s = None;
