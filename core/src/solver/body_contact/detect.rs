@@ -104,7 +104,8 @@ impl Faces for ColliderFaces<'_> {
 }
 
 /// A point looking for its face: position `x` and velocity `v` in a step of `dt`, the layer
-/// thickness `h`, how deep `behind` a face it may still touch it.
+/// thickness `h`, how deep `behind` a face it may still touch it, and whether the faces are
+/// `two_sided` (an open mesh: see [`facing_side`]).
 #[derive(Debug, Clone, Copy)]
 struct Probe {
     x: Vector3<f64>,
@@ -112,6 +113,27 @@ struct Probe {
     dt: f64,
     h: f64,
     behind: f64,
+    two_sided: bool,
+}
+
+/// The normal of a face with unit normal `n` through corner `a` as the point seen from `prev`
+/// (its position at the step's start relative to the face) meets it. A closed surface wound
+/// outwards has an inside, behind its faces, out of which a point is pushed to the front. An
+/// open mesh (a sheet, a ground plane, a leaf; a voxel export's faces) has none: each face
+/// has two fronts, and a point meets the one on the side it comes from. A block lying on a
+/// sheet whose faces point down was pushed through it to the sheet's front and then thrown
+/// by the layer at tens of metres a second.
+fn facing_side(
+    probe: &Probe,
+    n: Vector3<f64>,
+    a: Vector3<f64>,
+    prev: Vector3<f64>,
+) -> Vector3<f64> {
+    if probe.two_sided && (prev - a).dot(&n) < 0.0 {
+        -n
+    } else {
+        n
+    }
 }
 
 /// A candidate face that can still be the answer: a lower bound on its distance from the
@@ -208,6 +230,7 @@ fn candidate_bound(probe: &Probe, faces: &impl Faces, tri: u32, order: u32) -> O
         dt,
         h,
         behind,
+        two_sided,
     } = *probe;
     let reach = h.max(behind);
     let (qlo, qhi) = (
@@ -228,9 +251,11 @@ fn candidate_bound(probe: &Probe, faces: &impl Faces, tri: u32, order: u32) -> O
     // by less than the relative motion of the step could carry it.
     let s = n.dot(&x) - offset;
     let travel = 2.0 * (v.norm() + faces.speed(t)) * dt + 1e-9 * h;
+    // An open mesh's face is crossed from either side, and met within the layer on both.
+    let s = if two_sided { -s.abs() } else { s };
     let may_cross = s < 0.0 && -s < travel;
     let distance = faces.distance_bound(t, &x);
-    let limit = if s >= 0.0 { h } else { behind };
+    let limit = if s >= 0.0 || two_sided { h } else { behind };
     (distance < limit || may_cross).then_some(Bound {
         distance,
         order,
@@ -260,14 +285,14 @@ impl FaceSearch {
             return;
         }
         let t = bound.tri as usize;
-        let (n, _) = faces.plane(t);
         let [a, b, c] = faces.corners(t);
         let (bary, interior) = closest_on_triangle(&x, &a, &b, &c);
         let q = a * bary[0] + b * bary[1] + c * bary[2];
         let vq = faces.velocity(t, bary);
         let rel = v - vq;
-        let s_now = (x - a).dot(&n);
         let prev = x - rel * dt;
+        let n = facing_side(probe, faces.plane(t).0, a, prev);
+        let s_now = (x - a).dot(&n);
         if s_now < 0.0 && (prev - a).dot(&n) > 0.0 {
             if let Some((u, w)) = segment_crosses_triangle(&prev, &x, &a, &b, &c) {
                 let earlier = self
@@ -552,6 +577,7 @@ pub(super) fn pair_contacts(
             dt: search.dt,
             h: search.h,
             behind: search.behind,
+            two_sided: !closed,
         };
         let ranked = Ranked {
             lower: &list.lower[start_of..end as usize],
@@ -759,6 +785,7 @@ pub(super) fn detect_collider(
             dt,
             h,
             behind,
+            two_sided: false,
         };
         let faces = ColliderFaces(col);
         if let Some(hit) = best_face(probe, &bc.candidates, &faces, &mut bc.bounds, None) {
@@ -939,6 +966,7 @@ mod tests {
                         dt: 1e-3,
                         h: 0.05,
                         behind: 0.05,
+                        two_sided: false,
                     };
                     let moved = rng.vector() * (0.01 / 3f64.sqrt());
                     let want = exhaustive(probe, &all, &faces);
