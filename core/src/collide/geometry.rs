@@ -1,8 +1,8 @@
 //! Exact small geometric queries for collision detection: the closest point of a triangle,
-//! a segment crossing a triangle, the closest points of two segments; and the rotation of a
-//! polar decomposition (a point set's best-fit turn).
+//! a segment crossing a triangle, the closest points of two segments, whether a mesh bounds a
+//! solid; and the rotation of a polar decomposition (a point set's best-fit turn).
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
 /// Closest point of triangle `(a, b, c)` to `p`, as barycentric weights `[wa, wb, wc]`
 /// (Ericson, *Real-Time Collision Detection* §5.1.5), and whether it lies inside the face
@@ -163,6 +163,57 @@ pub fn polar_rotation(a: &Matrix3<f64>) -> Option<Matrix3<f64>> {
         u.set_column(2, &flipped);
     }
     Some(u * v_t)
+}
+
+/// Whether `triangles` over `positions` bound a solid with their fronts outside: with
+/// corners at the same position taken as one vertex (a DCC's export splits them at seams
+/// and hard edges), every edge is walked once each way by two triangles, none is
+/// degenerate, and the enclosed (signed) volume is positive. An open sheet, a mesh with a
+/// hole, a non-manifold edge or one wound inside out is not.
+pub fn closed_outward(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> bool {
+    use std::collections::HashMap;
+    if triangles.is_empty() {
+        return false;
+    }
+    let welded = weld_positions(positions.iter().map(|p| p.coords));
+    let mut walks: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut volume = 0.0;
+    for t in triangles {
+        let Some(v) = t
+            .iter()
+            .map(|&i| welded.get(i as usize).copied())
+            .collect::<Option<Vec<u32>>>()
+        else {
+            return false;
+        };
+        if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
+            return false;
+        }
+        for e in 0..3 {
+            *walks.entry((v[e], v[(e + 1) % 3])).or_insert(0) += 1;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize].coords);
+        volume += a.dot(&b.cross(&c)) / 6.0;
+    }
+    let paired = walks
+        .iter()
+        .all(|(&(u, v), &n)| n == 1 && walks.get(&(v, u)) == Some(&1));
+    paired && volume > 0.0
+}
+
+/// Per position, an index shared by all positions equal to it (corners a DCC's export split
+/// at seams and hard edges taken as one vertex), numbered in order of first appearance.
+pub fn weld_positions(positions: impl Iterator<Item = Vector3<f64>>) -> Vec<u32> {
+    use std::collections::HashMap;
+    // `+ 0.0` turns −0 into 0, so both weld.
+    let key = |p: Vector3<f64>| [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f64::to_bits);
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    positions
+        .map(|p| {
+            let next = ids.len() as u32;
+            *ids.entry(key(p)).or_insert(next)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -19,6 +19,10 @@ pub struct StaticCollider {
     pub triangles: Vec<[u32; 3]>,
     /// Unit face normals (counter-clockwise front: the side bodies are pushed to).
     pub normals: Vec<Vector3<f64>>,
+    /// The mesh bounds no solid (`geometry::closed_outward` is false: a ground plane, a sheet,
+    /// a double-sided or inside-out mesh): each face has two fronts, and a point meets the
+    /// one on its side (see [`StaticCollider::penetration`]).
+    pub two_sided: bool,
     /// Coulomb friction coefficient on its surface.
     pub friction: f64,
     /// Bounding box of the mesh.
@@ -44,6 +48,10 @@ pub enum ColliderError {
     #[error("collider \"{name}\": friction must be finite and >= 0, got {value}")]
     BadFriction { name: String, value: f64 },
 }
+
+/// How near a face's plane (relative to the distance from the origin, plus a metre) a point
+/// counts as on it: rounding.
+const ON_PLANE: f64 = 1e-12;
 
 impl StaticCollider {
     /// A collider from triangles over `positions` (simulation metres). Zero-area triangles are
@@ -113,11 +121,19 @@ impl StaticCollider {
                 (i as u32, a.inf(&b).inf(&c), a.sup(&b).sup(&c))
             }),
         );
+        let two_sided = !geometry::closed_outward(
+            &positions
+                .iter()
+                .map(|&p| Point3::from(p))
+                .collect::<Vec<_>>(),
+            triangles,
+        );
         Ok(StaticCollider {
             name,
             positions,
             triangles: triangles.to_vec(),
             normals,
+            two_sided,
             friction,
             lo,
             hi,
@@ -137,11 +153,18 @@ impl StaticCollider {
     /// of a face, at most `behind` deep, is a contact with the nearest such face, unless it
     /// lies as near in front of another face (a double-sided sheet). `scratch` holds the
     /// grid's candidates.
+    ///
+    /// A [`two_sided`](Self::two_sided) collider's faces front the side the point is on: the
+    /// side of `resting`, the normal this collider last put the point back along (a point
+    /// resting on a face ends each step a rounding either side of it), else the side of
+    /// `previous`. A box dropped onto a ground plane whose faces point down landed on it
+    /// instead of being pushed through it and thrown at 170 m/s.
     pub fn penetration(
         &mut self,
         previous: &Vector3<f64>,
         x: &Vector3<f64>,
         behind: f64,
+        resting: Option<Vector3<f64>>,
         scratch: &mut Vec<u32>,
     ) -> Option<(Vector3<f64>, f64)> {
         let lo = x.inf(previous).add_scalar(-behind);
@@ -158,6 +181,7 @@ impl StaticCollider {
                 continue;
             }
             let [a, b, c] = self.corners(t as usize);
+            let n = self.facing(n, a, (previous, x), resting);
             let depth = -(x - a).dot(&n);
             if depth <= 0.0 {
                 continue;
@@ -181,8 +205,38 @@ impl StaticCollider {
             return crossing.map(|(_, n, d)| (n, d));
         }
         // A point as near a face it lies in front of is outside: a double-sided sheet's
-        // turned-over face, or a slab thinner than `behind`, would push it through.
-        nearest.filter(|&(_, depth)| !self.in_front_within(x, depth, scratch))
+        // turned-over face, or a slab thinner than `behind`, would push it through. (A
+        // two-sided face fronts the point's side already.)
+        nearest.filter(|&(_, depth)| self.two_sided || !self.in_front_within(x, depth, scratch))
+    }
+
+    /// Face normal `n` (corner `a`) turned to front the point's side when the collider is
+    /// two-sided (see [`Self::penetration`]). A point that starts the step on the face's
+    /// plane (a box modelled standing on a ground plane) comes from the side it moves away
+    /// from: it cannot pass through.
+    fn facing(
+        &self,
+        n: Vector3<f64>,
+        a: Vector3<f64>,
+        (previous, x): (&Vector3<f64>, &Vector3<f64>),
+        resting: Option<Vector3<f64>>,
+    ) -> Vector3<f64> {
+        let back = match resting {
+            Some(r) => r.dot(&n) < 0.0,
+            None => {
+                let side = (previous - a).dot(&n);
+                if side.abs() <= ON_PLANE * (1.0 + a.norm()) {
+                    (x - previous).dot(&n) > 0.0
+                } else {
+                    side < 0.0
+                }
+            }
+        };
+        if self.two_sided && back {
+            -n
+        } else {
+            n
+        }
     }
 
     /// Whether `x` lies in front of the interior of one of the `candidates`, at most `gap`
@@ -223,26 +277,57 @@ mod tests {
         let above = Vector3::new(0.2, 0.3, 0.1);
         // Crossed from the front, 0.5 m deep in one step: depth to the face.
         let (n, d) = quad
-            .penetration(&above, &Vector3::new(0.2, -0.5, 0.1), 0.05, &mut scratch)
+            .penetration(
+                &above,
+                &Vector3::new(0.2, -0.5, 0.1),
+                0.05,
+                None,
+                &mut scratch,
+            )
             .unwrap();
         assert_eq!((n, d), (Vector3::y(), 0.5));
-        // Still above: no contact; just behind without crossing: within `behind` only.
+        // The quad is open, so two-sided: crossed from below, the face fronts down.
+        let below = Vector3::new(0.2, -0.3, 0.1);
+        let (n, d) = quad
+            .penetration(&below, &above, 0.05, None, &mut scratch)
+            .unwrap();
+        assert_eq!((n, d), (-Vector3::y(), 0.3));
+        // Still above: no contact. Just behind without crossing: on the quad's back, unless
+        // it rests on its front, where it is a contact within `behind` only.
         let near = Vector3::new(0.2, -0.01, 0.1);
         assert!(quad
-            .penetration(&above, &above, 0.05, &mut scratch)
+            .penetration(&above, &above, 0.05, None, &mut scratch)
             .is_none());
+        assert!(quad
+            .penetration(&near, &near, 0.05, None, &mut scratch)
+            .is_none());
+        let resting = Some(Vector3::y());
         assert_eq!(
-            quad.penetration(&near, &near, 0.05, &mut scratch)
+            quad.penetration(&near, &near, 0.05, resting, &mut scratch)
                 .unwrap()
                 .1,
             0.01
         );
         assert!(quad
-            .penetration(&near, &near, 0.005, &mut scratch)
+            .penetration(&near, &near, 0.005, resting, &mut scratch)
             .is_none());
+        // A point on the face's plane moving down meets its front, moving up its back.
+        let on = Vector3::new(0.2, 0.0, 0.1);
+        let down = Vector3::new(0.2, -0.01, 0.1);
+        let (n, _) = quad
+            .penetration(&on, &down, 0.05, None, &mut scratch)
+            .unwrap();
+        assert_eq!(n, Vector3::y());
+        let up = Vector3::new(0.2, 0.01, 0.1);
+        let (n, _) = quad
+            .penetration(&on, &up, 0.05, None, &mut scratch)
+            .unwrap();
+        assert_eq!(n, -Vector3::y());
         // Beside the quad: nothing.
         let off = Vector3::new(1.5, -0.01, 0.0);
-        assert!(quad.penetration(&off, &off, 0.05, &mut scratch).is_none());
+        assert!(quad
+            .penetration(&off, &off, 0.05, None, &mut scratch)
+            .is_none());
     }
 
     #[test]

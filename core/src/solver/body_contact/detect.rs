@@ -785,7 +785,7 @@ pub(super) fn detect_collider(
             dt,
             h,
             behind,
-            two_sided: false,
+            two_sided: col.two_sided,
         };
         let faces = ColliderFaces(col);
         if let Some(hit) = best_face(probe, &bc.candidates, &faces, &mut bc.bounds, None) {

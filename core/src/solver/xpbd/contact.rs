@@ -137,18 +137,21 @@ pub(crate) struct ColliderContact {
 /// The correction of a display-surface point now at `x` (at `previous` at the substep's
 /// start) that static colliders make: each collider it entered (or lies at most `behind`
 /// behind) moves it back onto the face along the face normal, with the collider's Coulomb
-/// friction on its slip, as the floor does.
+/// friction on its slip, as the floor does. `resting`: the collider and normal the previous
+/// substep put the point back onto (its [`ColliderContact::deepest`]), which says the side
+/// of a two-sided collider the point rests on.
 pub(crate) fn resolve_colliders(
     colliders: &mut [StaticCollider],
-    previous: V3,
-    x: V3,
+    (previous, x): (V3, V3),
     behind: f64,
+    resting: Option<(u32, V3)>,
     scratch: &mut Vec<u32>,
 ) -> ColliderContact {
     let mut out = ColliderContact::default();
     let mut p = x;
     for (c, collider) in colliders.iter_mut().enumerate() {
-        if let Some((n, depth)) = collider.penetration(&previous, &p, behind, scratch) {
+        let side = resting.filter(|&(k, _)| k as usize == c).map(|(_, n)| n);
+        if let Some((n, depth)) = collider.penetration(&previous, &p, behind, side, scratch) {
             let moved = p + n * depth;
             let slip = tangential(moved - previous, &n);
             p = moved - friction(slip, collider.friction * depth);

@@ -100,6 +100,7 @@ fn rigid_contacts_with(
     }
     for (&i, visit) in model.points.order.iter().zip(model.visits.iter()) {
         let i = i as usize;
+        let resting = model.collider_touch[i];
         if colliders {
             model.collider_touch[i] = None;
         }
@@ -121,7 +122,8 @@ fn rigid_contacts_with(
         };
         let held = if colliders {
             let after = p + c.correction;
-            resolve_colliders(statics, p_prev, after, behind, &mut model.collider_scratch)
+            let scratch = &mut model.collider_scratch;
+            resolve_colliders(statics, (p_prev, after), behind, resting, scratch)
         } else {
             ColliderContact::default()
         };
