@@ -49,9 +49,10 @@ pub enum ColliderError {
     BadFriction { name: String, value: f64 },
 }
 
-/// How near a face's plane (relative to the distance from the origin, plus a metre) a point
-/// counts as on it: rounding.
-const ON_PLANE: f64 = 1e-12;
+/// How near a face's plane a point counts as on it, in contact layers: what the contact of
+/// a body lying on the face leaves (its points are set there through their cells, within a
+/// rounding or a fraction of a micrometre either side).
+const ON_FACE: f64 = 1e-3;
 
 impl StaticCollider {
     /// A collider from triangles over `positions` (simulation metres). Zero-area triangles are
@@ -154,17 +155,17 @@ impl StaticCollider {
     /// lies as near in front of another face (a double-sided sheet). `scratch` holds the
     /// grid's candidates.
     ///
-    /// A [`two_sided`](Self::two_sided) collider's faces front the side the point is on: the
-    /// side of `resting`, the normal this collider last put the point back along (a point
-    /// resting on a face ends each step a rounding either side of it), else the side of
-    /// `previous`. A box dropped onto a ground plane whose faces point down landed on it
-    /// instead of being pushed through it and thrown at 170 m/s.
+    /// A [`two_sided`](Self::two_sided) collider's faces front the side the point is on
+    /// (`side`: the normal this collider last put the point back along, while it stays near,
+    /// and the centre of the point's body; see `facing`). A box dropped onto a ground plane
+    /// whose faces point down landed on it instead of being pushed through it and thrown at
+    /// 170 m/s.
     pub fn penetration(
         &mut self,
         previous: &Vector3<f64>,
         x: &Vector3<f64>,
         behind: f64,
-        resting: Option<Vector3<f64>>,
+        side: (Option<Vector3<f64>>, Option<Vector3<f64>>),
         scratch: &mut Vec<u32>,
     ) -> Option<(Vector3<f64>, f64)> {
         let lo = x.inf(previous).add_scalar(-behind);
@@ -181,7 +182,7 @@ impl StaticCollider {
                 continue;
             }
             let [a, b, c] = self.corners(t as usize);
-            let n = self.facing(n, a, (previous, x), resting);
+            let n = self.facing(n, a, previous, side, behind);
             let depth = -(x - a).dot(&n);
             if depth <= 0.0 {
                 continue;
@@ -211,24 +212,28 @@ impl StaticCollider {
     }
 
     /// Face normal `n` (corner `a`) turned to front the point's side when the collider is
-    /// two-sided (see [`Self::penetration`]). A point that starts the step on the face's
-    /// plane (a box modelled standing on a ground plane) comes from the side it moves away
-    /// from: it cannot pass through.
+    /// two-sided (see [`Self::penetration`]): the side it rests on, else the side of
+    /// `previous`, unless that lies within [`ON_FACE`] layers (`behind`) of the plane (a
+    /// point of a body lying on the face, set there through its cell by its neighbours'
+    /// contacts, a rounding either side of it): then the side of `body`, the centre of the
+    /// point's body; the face's own front when that too lies on the plane.
     fn facing(
         &self,
         n: Vector3<f64>,
         a: Vector3<f64>,
-        (previous, x): (&Vector3<f64>, &Vector3<f64>),
-        resting: Option<Vector3<f64>>,
+        previous: &Vector3<f64>,
+        (resting, body): (Option<Vector3<f64>>, Option<Vector3<f64>>),
+        behind: f64,
     ) -> Vector3<f64> {
+        let band = ON_FACE * behind;
         let back = match resting {
             Some(r) => r.dot(&n) < 0.0,
             None => {
                 let side = (previous - a).dot(&n);
-                if side.abs() <= ON_PLANE * (1.0 + a.norm()) {
-                    (x - previous).dot(&n) > 0.0
-                } else {
+                if side.abs() > band {
                     side < 0.0
+                } else {
+                    body.is_some_and(|c| (c - a).dot(&n) < -band)
                 }
             }
         };
@@ -281,7 +286,7 @@ mod tests {
                 &above,
                 &Vector3::new(0.2, -0.5, 0.1),
                 0.05,
-                None,
+                (None, None),
                 &mut scratch,
             )
             .unwrap();
@@ -289,19 +294,19 @@ mod tests {
         // The quad is open, so two-sided: crossed from below, the face fronts down.
         let below = Vector3::new(0.2, -0.3, 0.1);
         let (n, d) = quad
-            .penetration(&below, &above, 0.05, None, &mut scratch)
+            .penetration(&below, &above, 0.05, (None, None), &mut scratch)
             .unwrap();
         assert_eq!((n, d), (-Vector3::y(), 0.3));
         // Still above: no contact. Just behind without crossing: on the quad's back, unless
         // it rests on its front, where it is a contact within `behind` only.
         let near = Vector3::new(0.2, -0.01, 0.1);
         assert!(quad
-            .penetration(&above, &above, 0.05, None, &mut scratch)
+            .penetration(&above, &above, 0.05, (None, None), &mut scratch)
             .is_none());
         assert!(quad
-            .penetration(&near, &near, 0.05, None, &mut scratch)
+            .penetration(&near, &near, 0.05, (None, None), &mut scratch)
             .is_none());
-        let resting = Some(Vector3::y());
+        let resting = (Some(Vector3::y()), None);
         assert_eq!(
             quad.penetration(&near, &near, 0.05, resting, &mut scratch)
                 .unwrap()
@@ -311,22 +316,26 @@ mod tests {
         assert!(quad
             .penetration(&near, &near, 0.005, resting, &mut scratch)
             .is_none());
-        // A point on the face's plane moving down meets its front, moving up its back.
+        // A point on the face's plane, not resting on it, takes its body's side: going down
+        // from above it meets the front, going up from below the back.
         let on = Vector3::new(0.2, 0.0, 0.1);
-        let down = Vector3::new(0.2, -0.01, 0.1);
+        let (down, up) = (Vector3::new(0.2, -0.01, 0.1), Vector3::new(0.2, 0.01, 0.1));
+        let sides = |body: f64| (None, Some(Vector3::new(0.0, body, 0.0)));
         let (n, _) = quad
-            .penetration(&on, &down, 0.05, None, &mut scratch)
+            .penetration(&on, &down, 0.05, sides(0.2), &mut scratch)
             .unwrap();
         assert_eq!(n, Vector3::y());
-        let up = Vector3::new(0.2, 0.01, 0.1);
+        assert!(quad
+            .penetration(&on, &up, 0.05, sides(0.2), &mut scratch)
+            .is_none());
         let (n, _) = quad
-            .penetration(&on, &up, 0.05, None, &mut scratch)
+            .penetration(&on, &up, 0.05, sides(-0.2), &mut scratch)
             .unwrap();
         assert_eq!(n, -Vector3::y());
         // Beside the quad: nothing.
         let off = Vector3::new(1.5, -0.01, 0.0);
         assert!(quad
-            .penetration(&off, &off, 0.05, None, &mut scratch)
+            .penetration(&off, &off, 0.05, (None, None), &mut scratch)
             .is_none());
     }
 

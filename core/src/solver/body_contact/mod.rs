@@ -185,6 +185,8 @@ pub struct BodyContact {
     step: u64,
     /// Per body: node box, surface point range, mass per unit of share, mesh index.
     boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// Scratch of [`BodyContact::colliders_and_centres`]: the boxes' centres.
+    centres: Vec<Option<Vector3<f64>>>,
     /// Per body: its fastest node's speed in the step, m/s, its nodes' mean velocity, and
     /// the fastest node's speed relative to that mean.
     max_speed: Vec<f64>,
@@ -249,6 +251,20 @@ impl BodyContact {
         self.body_constraints
             && self.model == ContactModel::ElasticLayer
             && !self.layer_pairs.contains(&(a, b))
+    }
+
+    /// The static colliders, and per body the centre of its node box at the last contact
+    /// pass (`None` before it): which side of an open collider a body lies on.
+    pub(crate) fn colliders_and_centres(
+        &mut self,
+    ) -> (&mut [StaticCollider], &[Option<Vector3<f64>>]) {
+        self.centres.clear();
+        let centre = |(lo, hi): &(Vector3<f64>, Vector3<f64>)| {
+            let c = (lo + hi) / 2.0;
+            c.iter().all(|v| v.is_finite()).then_some(c)
+        };
+        self.centres.extend(self.boxes.iter().map(centre));
+        (&mut self.colliders, &self.centres)
     }
 
     /// Whether bodies `a` and `b` are parts of one glued assembly (see `assemblies`).

@@ -137,20 +137,22 @@ pub(crate) struct ColliderContact {
 /// The correction of a display-surface point now at `x` (at `previous` at the substep's
 /// start) that static colliders make: each collider it entered (or lies at most `behind`
 /// behind) moves it back onto the face along the face normal, with the collider's Coulomb
-/// friction on its slip, as the floor does. `resting`: the collider and normal the previous
-/// substep put the point back onto (its [`ColliderContact::deepest`]), which says the side
-/// of a two-sided collider the point rests on.
+/// friction on its slip, as the floor does. `resting`: the collider and normal a substep
+/// before put the point back along (its [`ColliderContact::deepest`]) while it stays near,
+/// and `body`, the centre of the point's body: which side of a two-sided collider the point
+/// is on.
 pub(crate) fn resolve_colliders(
     colliders: &mut [StaticCollider],
     (previous, x): (V3, V3),
     behind: f64,
-    resting: Option<(u32, V3)>,
+    (resting, body): (Option<(u32, V3)>, Option<V3>),
     scratch: &mut Vec<u32>,
 ) -> ColliderContact {
     let mut out = ColliderContact::default();
     let mut p = x;
     for (c, collider) in colliders.iter_mut().enumerate() {
-        let side = resting.filter(|&(k, _)| k as usize == c).map(|(_, n)| n);
+        let rests = resting.filter(|&(k, _)| k as usize == c).map(|(_, n)| n);
+        let side = (rests, body);
         if let Some((n, depth)) = collider.penetration(&previous, &p, behind, side, scratch) {
             let moved = p + n * depth;
             let slip = tangential(moved - previous, &n);

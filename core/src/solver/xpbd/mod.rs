@@ -168,6 +168,11 @@ pub(crate) struct Model {
     /// Per display-surface point: the collider and face normal it was put back onto in this
     /// substep (for the restitution of stiff bodies).
     collider_touch: Vec<Option<(u32, V3)>>,
+    /// Per display-surface point: the two-sided collider's side it rests on, as the collider,
+    /// the normal it was last put back along and where, kept while the point stays within a
+    /// layer of that place on that side (a point leaving a face after resting on it is a
+    /// rounding either side of it; see `collide::StaticCollider::penetration`).
+    collider_side: Vec<Option<(u32, V3, V3)>>,
     /// Whether a constraint pass has filled `point_contact` since the model was built.
     logged_once: bool,
     /// Impacts of bodies too stiff for a substep to resolve (`restitution`).
@@ -361,6 +366,7 @@ impl Model {
             found: vec![0; world.surface.len()],
             collider_scratch: Vec::new(),
             collider_touch: vec![None; world.surface.len()],
+            collider_side: vec![None; world.surface.len()],
             logged_once: false,
             restitution: Restitution::build(world),
             glue: Glue::default(),

@@ -83,7 +83,8 @@ fn rigid_contacts_with(
         out.capsule_work += work;
     }
     let x = &mut world.nodes.position;
-    let statics = &mut world.body_contact.colliders[..];
+    let (statics, centres) = world.body_contact.colliders_and_centres();
+    let surface_body = &world.surface.body;
     let behind = world.settings.layer.thickness_m;
     model.logged_once = true;
     for &i in &model.in_contact {
@@ -100,7 +101,6 @@ fn rigid_contacts_with(
     }
     for (&i, visit) in model.points.order.iter().zip(model.visits.iter()) {
         let i = i as usize;
-        let resting = model.collider_touch[i];
         if colliders {
             model.collider_touch[i] = None;
         }
@@ -122,8 +122,18 @@ fn rigid_contacts_with(
         };
         let held = if colliders {
             let after = p + c.correction;
+            let side = &mut model.collider_side[i];
+            // The side it rested on holds while it stays within a layer of that place.
+            *side = side.filter(|&(_, n, q)| (p_prev - q).dot(&n).abs() < behind);
+            let resting = side.map(|(k, n, _)| (k, n));
+            let body = centres.get(surface_body[i] as usize).copied().flatten();
             let scratch = &mut model.collider_scratch;
-            resolve_colliders(statics, (p_prev, after), behind, resting, scratch)
+            let sides = (resting, body);
+            let held = resolve_colliders(statics, (p_prev, after), behind, sides, scratch);
+            if let Some((k, n)) = held.deepest {
+                *side = Some((k, n, after + held.correction));
+            }
+            held
         } else {
             ColliderContact::default()
         };
