@@ -599,9 +599,9 @@ fn hertz_between_two_rigid_balls_matches_the_closed_form() {
 }
 
 /// A soft cube dropped 0.3 m onto a ground quad (a static collider) whose faces point up
-/// (`up`) or down: the lowest point of the cube over its last frame, and its fastest node over
-/// the bake. Each frame's energy balance holds.
-fn drop_on_quad(up: bool) -> (f64, f64) {
+/// (`up`) or down: the lowest point of the cube at the end, its fastest node over the bake,
+/// and how high its lowest point rose after it landed. Each frame's energy balance holds.
+fn drop_on_quad(up: bool) -> (f64, f64, f64) {
     let m = Material::preset("soft_rubber").unwrap();
     let corners =
         [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]].map(|[x, z]| Point3::new(x, 0.0, z));
@@ -622,14 +622,18 @@ fn drop_on_quad(up: bool) -> (f64, f64) {
     assert_eq!(ground.normals[0].y, if up { 1.0 } else { -1.0 });
     w.add_collider(ground);
     let (cube, _) = add_body(&mut w, "cube", &p, &t, 4, &m, Vector3::zeros());
-    let mut fastest = 0.0f64;
+    let (mut fastest, mut landed, mut bounce) = (0.0f64, false, 0.0f64);
     for f in 2..=36 {
         let d = w.advance_frame(1.0 / 24.0, f, &|| false).unwrap();
         assert_eq!(d.energy_gain, Some(0.0), "frame {f}");
         fastest = fastest.max(d.max_speed);
+        let lowest = cube.lowest(&w);
+        landed |= lowest < 5e-3;
+        if landed {
+            bounce = bounce.max(lowest);
+        }
     }
-    let lowest = cube.lowest(&w);
-    (lowest, fastest)
+    (cube.lowest(&w), fastest, bounce)
 }
 
 /// A ground plane is an open mesh: which way its faces point is how it was exported. A cube
@@ -637,8 +641,8 @@ fn drop_on_quad(up: bool) -> (f64, f64) {
 /// pushed through it and thrown at 170 m/s).
 #[test]
 fn a_cube_lands_on_a_ground_quad_whichever_way_its_faces_point() {
-    let (rest_up, fastest_up) = drop_on_quad(true);
-    let (rest_down, fastest_down) = drop_on_quad(false);
+    let (rest_up, fastest_up, bounce_up) = drop_on_quad(true);
+    let (rest_down, fastest_down, bounce_down) = drop_on_quad(false);
     // 0.3 m of fall is 2.4 m/s.
     for (fastest, rest) in [(fastest_up, rest_up), (fastest_down, rest_down)] {
         assert!(fastest < 3.0, "fastest node {fastest} m/s");
@@ -647,5 +651,11 @@ fn a_cube_lands_on_a_ground_quad_whichever_way_its_faces_point() {
     assert!(
         (rest_up - rest_down).abs() < 1e-3,
         "{rest_up} m and {rest_down} m"
+    );
+    // It bounces off either alike (the rebound was held down onto a face pointing down).
+    assert!(bounce_up > 0.02, "bounced {bounce_up} m");
+    assert!(
+        (bounce_up - bounce_down).abs() < 0.1 * bounce_up,
+        "bounced {bounce_up} m and {bounce_down} m"
     );
 }
