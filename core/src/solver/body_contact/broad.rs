@@ -60,8 +60,8 @@ pub(super) fn pairs_in_reach(bc: &BodyContact, h: f64, dt: f64) -> Vec<PairInRea
 
 /// Bodies `a < b` when they may touch in the step (the exact test): their boxes lie within
 /// the reach plus the pair's travel on every axis, within `2h` of each other, the pair is
-/// not one that never touches (`BodyContact::never_touch`) and one of them has faces; with the region `[lo, hi]` (both boxes grown by
-/// `h`) the searches look in.
+/// not one that never touches (`BodyContact::never_touch`) and one of them has faces; with
+/// the region `[lo, hi]` (both boxes grown by `h`) the searches look in.
 fn pair_in_reach(bc: &BodyContact, (a, b): (usize, usize), h: f64, dt: f64) -> Option<PairInReach> {
     let reach = h.max(BEHIND_LAYERS * h);
     let ((alo, ahi), (blo, bhi)) = (bc.boxes[a], bc.boxes[b]);
