@@ -225,6 +225,9 @@ impl StaticCollider {
         (resting, body): (Option<Vector3<f64>>, Option<Vector3<f64>>),
         behind: f64,
     ) -> Vector3<f64> {
+        if !self.two_sided {
+            return n;
+        }
         let band = ON_FACE * behind;
         let back = match resting {
             Some(r) => r.dot(&n) < 0.0,
@@ -237,7 +240,7 @@ impl StaticCollider {
                 }
             }
         };
-        if self.two_sided && back {
+        if back {
             -n
         } else {
             n

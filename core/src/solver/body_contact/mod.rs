@@ -145,6 +145,9 @@ use constraint::Stencils;
 use detect::*;
 use mesh::{refine, BodyMesh};
 
+/// A body's node box: its lowest and highest corner, m.
+pub(crate) type NodeBox = (Vector3<f64>, Vector3<f64>);
+
 /// The contact pass's state: meshes, colliders, the model, the force it leaves for the node
 /// pass, and scratch buffers.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -184,9 +187,7 @@ pub struct BodyContact {
     layer_pairs: Vec<(usize, usize)>,
     step: u64,
     /// Per body: node box, surface point range, mass per unit of share, mesh index.
-    boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
-    /// Scratch of [`BodyContact::colliders_and_centres`]: the boxes' centres.
-    centres: Vec<Option<Vector3<f64>>>,
+    boxes: Vec<NodeBox>,
     /// Per body: its fastest node's speed in the step, m/s, its nodes' mean velocity, and
     /// the fastest node's speed relative to that mean.
     max_speed: Vec<f64>,
@@ -253,18 +254,10 @@ impl BodyContact {
             && !self.layer_pairs.contains(&(a, b))
     }
 
-    /// The static colliders, and per body the centre of its node box at the last contact
-    /// pass (`None` before it): which side of an open collider a body lies on.
-    pub(crate) fn colliders_and_centres(
-        &mut self,
-    ) -> (&mut [StaticCollider], &[Option<Vector3<f64>>]) {
-        self.centres.clear();
-        let centre = |(lo, hi): &(Vector3<f64>, Vector3<f64>)| {
-            let c = (lo + hi) / 2.0;
-            c.iter().all(|v| v.is_finite()).then_some(c)
-        };
-        self.centres.extend(self.boxes.iter().map(centre));
-        (&mut self.colliders, &self.centres)
+    /// The static colliders, and per body its node box at the last contact pass (empty
+    /// before it): which side of an open collider a body lies on.
+    pub(crate) fn colliders_and_boxes(&mut self) -> (&mut [StaticCollider], &[NodeBox]) {
+        (&mut self.colliders, &self.boxes)
     }
 
     /// Whether bodies `a` and `b` are parts of one glued assembly (see `assemblies`).

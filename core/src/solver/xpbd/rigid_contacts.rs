@@ -83,7 +83,7 @@ fn rigid_contacts_with(
         out.capsule_work += work;
     }
     let x = &mut world.nodes.position;
-    let (statics, centres) = world.body_contact.colliders_and_centres();
+    let (statics, boxes) = world.body_contact.colliders_and_boxes();
     let surface_body = &world.surface.body;
     let behind = world.settings.layer.thickness_m;
     model.logged_once = true;
@@ -126,7 +126,9 @@ fn rigid_contacts_with(
             // The side it rested on holds while it stays within a layer of that place.
             *side = side.filter(|&(_, n, q)| (p_prev - q).dot(&n).abs() < behind);
             let resting = side.map(|(k, n, _)| (k, n));
-            let body = centres.get(surface_body[i] as usize).copied().flatten();
+            let body = (boxes.get(surface_body[i] as usize))
+                .map(|(lo, hi)| (lo + hi) / 2.0)
+                .filter(|c| c.iter().all(|v| v.is_finite()));
             let scratch = &mut model.collider_scratch;
             let sides = (resting, body);
             let held = resolve_colliders(statics, (p_prev, after), behind, sides, scratch);
