@@ -573,23 +573,31 @@ fn grey_share(
     buf.chunks(4).filter(|p| keep(p)).count() as f64 / (width * height) as f64
 }
 
-/// A mesh that starts half through the floor of a scene is named before the bake, with its
-/// depth and what to change; one that rests on it, or above it, is not.
+/// A mesh that starts half through the floor of a scene (a DCC's cube at the origin, the
+/// floor at 0) is lifted onto it before frame 1 and named, with how far; then it rests. Pushed
+/// out during the bake, a 30 cm rubber cube centred on the floor flew 7.5 m up. One that
+/// rests on the floor, or above it, is not moved or named.
 #[test]
-fn a_body_that_starts_through_the_floor_is_named_before_the_bake() {
+fn a_body_that_starts_through_the_floor_is_lifted_onto_it() {
     let dir = tempfile::tempdir().unwrap();
     support::cube(dir.path(), "cube.obj");
     let scene = |offset: f64| {
         format!(
-            "[output]\npath = \"out.glb\"\nframes = 2\n[world]\nfloor = 0.0\n\
+            "[output]\npath = \"out.glb\"\nframes = 24\n[world]\nfloor = 0.0\n\
              [[body]]\nsource = \"cube.obj\"\ncells = 4\noffset = [0.0, {offset}, 0.0]\n"
         )
     };
-    let err = support::bake_scene(dir.path(), "half.toml", &scene(0.0));
+    let (err, report) = support::bake_scene_reporting(dir.path(), "half.toml", &scene(0.0));
     assert!(
-        err.contains("body \"Cube\" starts 0.250 m through the floor"),
+        err.contains("body \"Cube\" started 0.250 m through the floor: lifted onto it"),
         "{err}"
     );
+    let frames = report["frames"].as_array().unwrap();
+    for f in frames {
+        let speed = f["max_speed"].as_f64().unwrap();
+        assert!(speed < 0.3, "frame {}: {speed} m/s", f["frame"]);
+        assert_eq!(f["energy_gain"].as_f64().unwrap_or(0.0), 0.0, "{f}");
+    }
     let err = support::bake_scene(dir.path(), "on.toml", &scene(0.25));
     assert!(!err.contains("through the floor"), "{err}");
 }

@@ -187,6 +187,18 @@ pub fn add_velocity(
     reseed_rigid(world, body)
 }
 
+/// Move every node of the body by `shift`, its velocities unchanged.
+pub fn translate_body(
+    world: &mut World,
+    body: BodyHandle,
+    shift: Vector3<f64>,
+) -> Result<(), ProcedureError> {
+    for i in world.bodies[body.0].nodes.clone() {
+        world.nodes.position[i] += shift;
+    }
+    reseed_rigid(world, body)
+}
+
 /// Lowest height of the body over `plane`: of its display-surface points when it has them,
 /// else of its nodes.
 pub fn lowest_over(world: &World, body: BodyHandle, plane: &Plane) -> f64 {
@@ -221,10 +233,9 @@ pub fn place_on_plane(
     let (_, _, v) = centre_of_mass(world, body);
     let dv = -plane.normal * plane.normal.dot(&v);
     for i in world.bodies[body.0].nodes.clone() {
-        world.nodes.position[i] += plane.normal * lift;
         world.nodes.velocity[i] += dv;
     }
-    reseed_rigid(world, body)
+    translate_body(world, body, plane.normal * lift)
 }
 
 /// The plane under a body: the world plane most nearly facing `up` that the body is above.

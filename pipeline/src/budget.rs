@@ -493,32 +493,58 @@ pub fn inside_collider_notes(prepared: &Prepared) -> Vec<String> {
         .collect()
 }
 
-/// A body whose display mesh starts more than half a cell through the floor or a wall is
-/// thrown out of it at the first substeps (its lattice stores the push as strain and gives
-/// it back as speed): say so, with the depth and what to change, before the bake.
+/// Bodies that started through the floor or a wall were lifted out of it
+/// ([`crate::placement`]): say which and how far, so the artist knows frame 1 is not where
+/// they put them. A body still through a plane after that (wider than the room) is thrown out
+/// of it at the first substeps: say so, with the depth and what to change.
 pub fn through_plane_notes(prepared: &Prepared) -> Vec<String> {
-    let planes = &prepared.world.settings.planes;
-    (0..prepared.bodies.len())
-        .filter_map(|b| {
-            let body = &prepared.bodies[b];
-            let points = prepared.vertex_positions(b);
-            let deepest = points
-                .iter()
-                .flat_map(|p| {
-                    planes
-                        .iter()
-                        .map(move |pl| pl.offset - pl.normal.dot(&p.coords))
-                })
-                .fold(0.0, f64::max);
-            (deepest > 0.5 * body.lattice.cell_size).then(|| {
-                format!(
-                    "body \"{}\" starts {:.3} m through the floor or a wall: it will be thrown \
-                     out of it; raise it (`offset` in [[body]]) or move the plane",
-                    body.name, deepest
-                )
-            })
+    let mut notes: Vec<String> = prepared
+        .lifted
+        .iter()
+        .map(|lift| {
+            let named: Vec<String> = (lift.bodies.iter())
+                .map(|&b| format!("\"{}\"", prepared.bodies[b].name))
+                .collect();
+            let who = match named.len() {
+                1 => format!("body {}", named[0]),
+                n if n <= MAX_NAMED_BODIES => format!("bodies {} (touching)", named.join(", ")),
+                n => format!("{n} touching bodies ({})", first_and_count(&named)),
+            };
+            let (plane, verb) = if lift.floor {
+                ("the floor", "lifted onto it")
+            } else {
+                ("a wall", "moved out of it")
+            };
+            format!(
+                "{who} started {:.3} m through {plane}: {verb} before frame 1 (pushed out \
+                 during the bake, the model would be thrown; to place it yourself, set \
+                 `offset` in [[body]] or move the plane)",
+                lift.distance
+            )
         })
-        .collect()
+        .collect();
+    let planes = &prepared.world.settings.planes;
+    notes.extend((0..prepared.bodies.len()).filter_map(|b| {
+        let body = &prepared.bodies[b];
+        let points = prepared.vertex_positions(b);
+        let deepest = points
+            .iter()
+            .flat_map(|p| {
+                planes
+                    .iter()
+                    .map(move |pl| pl.offset - pl.normal.dot(&p.coords))
+            })
+            .fold(0.0, f64::max);
+        (deepest > 0.5 * body.lattice.cell_size).then(|| {
+            format!(
+                "body \"{}\" starts {:.3} m through the floor or a wall, and cannot be moved \
+                 clear of them all (it, or the bodies it touches, is wider than the room): it \
+                 will be thrown out of it; make the room larger or the body smaller",
+                body.name, deepest
+            )
+        })
+    }));
+    notes
 }
 
 /// Refuses a bake whose estimated memory is over `limit` bytes.

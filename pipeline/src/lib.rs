@@ -20,6 +20,7 @@ mod frame;
 pub mod inspect;
 mod models;
 pub mod outputs;
+pub mod placement;
 mod report;
 mod simulate;
 pub use outputs::write_outputs;

@@ -97,6 +97,8 @@ pub struct Prepared {
     pub events: Option<crate::events::EventDriver>,
     /// Where the solver runs (see [`crate::device`]).
     pub device: crate::device::Placement,
+    /// Bodies moved out of the floor or a wall they started through (see [`crate::placement`]).
+    pub lifted: Vec<crate::placement::Lift>,
 }
 
 fn import_all(
@@ -481,6 +483,8 @@ pub fn prepare(
             model_note: note,
         });
     }
+    // Out of the floor and walls before anything reads where the bodies are (see `placement`).
+    let lifted = crate::placement::lift_out_of_planes(&mut world, &bodies);
     // Contact between the bodies and with the `[[collider]]`s (see `colliders`).
     crate::colliders::wire(registry, loaded, &frame, &mut world, &bodies, &export_scene)?;
     add_constraints(scene, &mut world, &body_names)?;
@@ -504,6 +508,7 @@ pub fn prepare(
         floor,
         events,
         device,
+        lifted,
     })
 }
 
