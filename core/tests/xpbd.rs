@@ -881,6 +881,50 @@ fn a_tower_of_cubes_a_centimetre_apart_settles_and_stands() {
     assert!(sideways < 0.01, "the top cube moved {sideways} m sideways");
 }
 
+/// A wooden or steel box set a centimetre above another (both held rigid: far too stiff for
+/// their cells) lands on it and rests there. A contact moved only the nodes round its point
+/// and the shape matching spread that over the box, a tenth of what the contact asked: the
+/// upper steel box sank through the lower one and came to rest inside it.
+#[test]
+fn a_stiff_box_rests_on_another() {
+    for preset in ["wood", "steel"] {
+        let material = Material::preset(preset).unwrap();
+        let (size, gap, cells) = (0.3, 0.01, 6);
+        let mut w = floored_parts_world(&material);
+        let mut boxes = Vec::new();
+        for i in 0..2 {
+            let y0 = gap + i as f64 * (size + gap);
+            let m = mesh(box_mesh([0.0, y0, 0.0], [size, y0 + size, size]), cells);
+            boxes.push(add_part(&mut w, &format!("box{i}"), &m, &material));
+        }
+        assert_eq!(w.held_bodies().len(), 2, "{preset}: both held");
+        let lowest = |w: &World, h: BodyHandle| {
+            (w.body_positions(h).iter()).fold(f64::INFINITY, |lo, p| lo.min(p.y))
+        };
+        let highest = |w: &World, h: BodyHandle| {
+            (w.body_positions(h).iter()).fold(f64::NEG_INFINITY, |hi, p| hi.max(p.y))
+        };
+        // The lattices overhang the meshes alike, so their nodes' gap is the meshes' gap.
+        let apart0 = lowest(&w, boxes[1]) - highest(&w, boxes[0]);
+        for f in 1..=36 {
+            let d = frame(&mut w, f);
+            // 2 cm of fall is 0.63 m/s.
+            assert!(
+                d.max_speed < 1.0,
+                "{preset}, frame {f}: {} m/s",
+                d.max_speed
+            );
+        }
+        let apart = lowest(&w, boxes[1]) - highest(&w, boxes[0]);
+        let layer = w.settings.layer.thickness_m;
+        assert!(
+            apart > apart0 - gap - 0.5 * layer && apart < apart0,
+            "{preset}: the upper box's nodes end {apart} m above the lower's (at the start \
+             {apart0} m; layer {layer} m)"
+        );
+    }
+}
+
 /// A fast body's substeps are held by the speed cap (60 a frame at 24) only while it cannot
 /// reach the floor within the frame: a 10 cm rubber box of 15 cells thrown down at 5 m/s gets
 /// more once the floor is within reach. Held at 60, a 1 m rubber cube dropped 1 m on 64³

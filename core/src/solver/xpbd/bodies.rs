@@ -26,6 +26,7 @@
 //! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
 
 use super::contact::{friction, tangential};
+use super::held::RigidFrame;
 use crate::solver::body_contact::BodyConstraint;
 use nalgebra::Vector3;
 
@@ -37,6 +38,9 @@ type V3 = Vector3<f64>;
 /// the top face and a side face), and a side face's normal would push the stack apart.
 /// A point a little way off an edge has the direction to it, the same from both faces.
 pub(crate) const REST_GAP_LAYERS: f64 = 0.1;
+
+/// `frame_of`'s mark of a node that no held body's frame moves.
+pub(crate) const NO_FRAME: u32 = u32::MAX;
 
 /// What the constraints read.
 pub(crate) struct BodyContacts<'a> {
@@ -68,23 +72,46 @@ pub(crate) struct Touch {
 
 impl BodyContacts<'_> {
     /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and adding
-    /// their corrections to `shift`, and what separating contacts leave to `rest`.
+    /// their corrections to `shift`, and what separating contacts leave to `rest`. The held
+    /// bodies' `frames` (indexed per node by `frame_of`, empty without held bodies) move as
+    /// rigid bodies ([`RigidFrame`]), applied to their nodes at the end.
     pub(crate) fn solve(
         &self,
         x: &mut [V3],
-        moved: &mut [bool],
-        shift: &mut [V3],
-        rest: &mut [V3],
+        (moved, shift, rest): (&mut [bool], &mut [V3], &mut [V3]),
+        (frames, frame_of): (&mut [RigidFrame], &[u32]),
     ) -> Touch {
         let mut out = Touch::default();
+        let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
         for c in self.constraints {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
+            // Up to two held sides: (frame, summed weight, weighted point).
+            let mut sides = [(NO_FRAME, 0.0, V3::zeros()); 2];
             for &(node, s) in stencil {
                 let k = node as usize;
-                d += x[k] * s;
                 d_prev += self.previous[k] * s;
-                inverse_mass += s * s * self.inv_mass[k];
+                let f = frame(k);
+                if f == NO_FRAME {
+                    d += x[k] * s;
+                    inverse_mass += s * s * self.inv_mass[k];
+                    continue;
+                }
+                let xk = frames[f as usize].moved(x[k]);
+                d += xk * s;
+                let slot = usize::from(sides[0].0 != NO_FRAME && sides[0].0 != f);
+                sides[slot].0 = f;
+                sides[slot].1 += s;
+                sides[slot].2 += xk * s;
+            }
+            let mut points = [V3::zeros(); 2];
+            for (side, point) in sides.iter().zip(&mut points) {
+                let (f, sum, weighted) = *side;
+                if f != NO_FRAME && sum != 0.0 {
+                    *point = weighted / sum;
+                    let w = frames[f as usize].inverse_mass_at(*point, c.normal);
+                    inverse_mass += sum * sum * w;
+                }
             }
             if inverse_mass <= 0.0 {
                 continue;
@@ -119,9 +146,28 @@ impl BodyContacts<'_> {
             let correction = c.normal * push - friction(slip, self.friction * push);
             for &(node, s) in stencil {
                 let k = node as usize;
+                if frame(k) != NO_FRAME {
+                    continue;
+                }
                 let step = correction * (s * self.inv_mass[k] / inverse_mass);
                 x[k] += step;
                 shift[k] += step;
+                moved[k] = true;
+            }
+            for (side, point) in sides.iter().zip(&points) {
+                if side.0 != NO_FRAME && side.1 != 0.0 {
+                    frames[side.0 as usize].push(*point, correction * (side.1 / inverse_mass));
+                }
+            }
+        }
+        for f in frames.iter() {
+            if f.translation == V3::zeros() && f.rotation == V3::zeros() {
+                continue;
+            }
+            for k in f.nodes.clone() {
+                let to = f.moved(x[k]);
+                shift[k] += to - x[k];
+                x[k] = to;
                 moved[k] = true;
             }
         }

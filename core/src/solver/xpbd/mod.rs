@@ -186,6 +186,9 @@ pub(crate) struct Model {
     collapse_memo: Option<((u64, u64), f64)>,
     /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
     held: held::Held,
+    /// Per node, its held body's rigid frame in the body–body contacts (scratch, see
+    /// [`held::Held::rigid_frames`]; empty without held bodies).
+    frame_of: Vec<u32>,
     /// Each body's impact and the substeps it keeps through it (`impacts`).
     impacts: ImpactHold,
 }
@@ -373,6 +376,7 @@ impl Model {
             crowding: Crowding::default(),
             collapse_memo: None,
             held,
+            frame_of: Vec::new(),
             impacts: ImpactHold::default(),
         }
     }
@@ -1010,11 +1014,18 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         opening: MAX_SEPARATION_SPEED * dt,
     };
     model.contact_shifted = true;
+    let x = &mut world.nodes.position;
+    let mut frames = if model.held.is_empty() {
+        model.frame_of.clear();
+        Vec::new()
+    } else {
+        let (mass, inv_mass) = (&world.nodes.mass, &model.inv_mass);
+        (model.held).rigid_frames(x, mass, inv_mass, &mut model.frame_of)
+    };
     contacts.solve(
-        &mut world.nodes.position,
-        &mut model.moved,
-        &mut model.contact_shift,
-        &mut model.shift,
+        x,
+        (&mut model.moved, &mut model.contact_shift, &mut model.shift),
+        (&mut frames, &model.frame_of),
     )
 }
 
