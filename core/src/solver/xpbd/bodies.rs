@@ -55,6 +55,9 @@ pub(crate) struct BodyContacts<'a> {
     /// Per node, while parts that started overlapping are still separating: in contact at
     /// the start (such a contact opens by `opening` at most a substep whatever its start).
     pub separating: Option<&'a [bool]>,
+    /// Whether to solve the constraints in reverse order (every other substep in a world
+    /// with held bodies: see [`super::Model::contact_passes`]).
+    pub reverse: bool,
     /// How far a contact closer than the gap at the substep's start, or a separating one,
     /// may open in one substep beyond where it started, m.
     pub opening: f64,
@@ -83,7 +86,13 @@ impl BodyContacts<'_> {
     ) -> Touch {
         let mut out = Touch::default();
         let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
-        for c in self.constraints {
+        let forward = (!self.reverse).then(|| self.constraints.iter());
+        let backward = self.reverse.then(|| self.constraints.iter().rev());
+        for c in forward
+            .into_iter()
+            .flatten()
+            .chain(backward.into_iter().flatten())
+        {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
             // Up to two held sides: (frame, summed weight, weighted point).
