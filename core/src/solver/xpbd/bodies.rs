@@ -56,7 +56,7 @@ pub(crate) struct BodyContacts<'a> {
     /// the start (such a contact opens by `opening` at most a substep whatever its start).
     pub separating: Option<&'a [bool]>,
     /// Whether to solve the constraints in reverse order (every other substep in a world
-    /// with held bodies: see [`super::Model::contact_passes`]).
+    /// with held or rigid bodies: see [`super::Model::contact_passes`]).
     pub reverse: bool,
     /// How far a contact closer than the gap at the substep's start, or a separating one,
     /// may open in one substep beyond where it started, m.
@@ -76,8 +76,8 @@ pub(crate) struct Touch {
 impl BodyContacts<'_> {
     /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and adding
     /// their corrections to `shift`, and what separating contacts leave to `rest`. The held
-    /// bodies' `frames` (indexed per node by `frame_of`, empty without held bodies) move as
-    /// rigid bodies ([`RigidFrame`]), applied to their nodes at the end.
+    /// and rigid bodies' `frames` (indexed per node by `frame_of`, empty without such bodies)
+    /// move as rigid bodies ([`RigidFrame`]), applied to their nodes at the end.
     pub(crate) fn solve(
         &self,
         x: &mut [V3],

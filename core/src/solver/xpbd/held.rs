@@ -45,12 +45,14 @@ pub(crate) const HIDDEN_SAG: f64 = 0.01;
 /// Weight of a node held in place against the body's mass.
 const PINNED_WEIGHT: f64 = 1e6;
 
-/// A held body as one rigid body in the body–body contacts: a contact moves it as a whole
+/// A held or rigid body as one rigid body in the body–body contacts: a contact moves it as a whole
 /// (its translation and a small rotation about its centre, accumulated over the pass and
 /// applied to its nodes after it), with the rigid body's inverse mass along the contact,
 /// `1/M + (r × n)ᵀ I⁻¹ (r × n)`. Through its nodes, a contact moved only the eight round its
 /// point and the shape matching spread that over the body: a steel box moved a tenth of what
-/// the contact asked, and one steel box set on another sank through it.
+/// the contact asked, and one steel box set on another sank through it. A rigid body
+/// (`kind = "rigid"`) took the same push as momentum of those nodes, summed into its frame's:
+/// two rigid boxes passed through each other.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct RigidFrame {
     pub nodes: Range<usize>,
@@ -61,6 +63,54 @@ pub(crate) struct RigidFrame {
     /// The pass's accumulated translation and rotation (a small-angle vector), m and rad.
     pub translation: V3,
     pub rotation: V3,
+}
+
+/// The rigid frames at `position` of the bodies whose nodes are `bodies` (each with whether
+/// it may turn: a particle may not), for the body–body contacts ([`super::bodies`]), and per
+/// node the index of its frame ([`super::bodies::NO_FRAME`] for nodes of other bodies) into
+/// `frame_of` (resized to the node count; emptied when there are none). A body with a pinned
+/// or path-bound node does not move in a contact (its inverse mass is zero).
+pub(crate) fn rigid_frames(
+    bodies: impl Iterator<Item = (Range<usize>, bool)>,
+    (position, mass, inv_mass): (&[V3], &[f64], &[f64]),
+    frame_of: &mut Vec<u32>,
+) -> Vec<RigidFrame> {
+    frame_of.clear();
+    let mut frames = Vec::new();
+    for (range, turns) in bodies {
+        if frames.is_empty() {
+            frame_of.resize(position.len(), super::bodies::NO_FRAME);
+        }
+        let free = range.clone().all(|i| inv_mass[i] > 0.0 || mass[i] <= 0.0);
+        let total: f64 = range.clone().map(|i| mass[i]).sum();
+        let centre = if total > 0.0 {
+            range.clone().map(|i| position[i] * mass[i]).sum::<V3>() / total
+        } else {
+            V3::zeros()
+        };
+        let mut inertia = Matrix3::zeros();
+        for i in range.clone() {
+            let r = position[i] - centre;
+            inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * mass[i];
+        }
+        let inverse = (free && total > 0.0)
+            .then(|| inertia.try_inverse())
+            .flatten()
+            .filter(|m| m.iter().all(|v| v.is_finite()));
+        for i in range.clone() {
+            frame_of[i] = frames.len() as u32;
+        }
+        let turning = inverse.filter(|_| turns).unwrap_or_else(Matrix3::zeros);
+        frames.push(RigidFrame {
+            nodes: range,
+            centre,
+            inverse_mass: if inverse.is_some() { 1.0 / total } else { 0.0 },
+            inverse_inertia: turning,
+            translation: V3::zeros(),
+            rotation: V3::zeros(),
+        });
+    }
+    frames
 }
 
 impl RigidFrame {
@@ -125,51 +175,9 @@ impl Held {
         }
     }
 
-    /// Each held body's rigid frame at `position` for the body–body contacts
-    /// ([`super::bodies`]), and per node the index of its held body's frame ([`super::bodies::NO_FRAME`]
-    /// for nodes of other bodies) into `frame_of` (resized to the node count). A held body with a
-    /// pinned or path-bound node does not move in a contact (its inverse mass is zero).
-    pub(crate) fn rigid_frames(
-        &self,
-        position: &[V3],
-        mass: &[f64],
-        inv_mass: &[f64],
-        frame_of: &mut Vec<u32>,
-    ) -> Vec<RigidFrame> {
-        frame_of.clear();
-        frame_of.resize(position.len(), super::bodies::NO_FRAME);
-        let mut frames = Vec::with_capacity(self.bodies.len());
-        for body in &self.bodies {
-            let range = body.nodes.clone();
-            let free = range.clone().all(|i| inv_mass[i] > 0.0 || mass[i] <= 0.0);
-            let total: f64 = range.clone().map(|i| mass[i]).sum();
-            let centre = if total > 0.0 {
-                range.clone().map(|i| position[i] * mass[i]).sum::<V3>() / total
-            } else {
-                V3::zeros()
-            };
-            let mut inertia = Matrix3::zeros();
-            for i in range.clone() {
-                let r = position[i] - centre;
-                inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * mass[i];
-            }
-            let inverse = (free && total > 0.0)
-                .then(|| inertia.try_inverse())
-                .flatten()
-                .filter(|m| m.iter().all(|v| v.is_finite()));
-            for i in range.clone() {
-                frame_of[i] = frames.len() as u32;
-            }
-            frames.push(RigidFrame {
-                nodes: range,
-                centre,
-                inverse_mass: if inverse.is_some() { 1.0 / total } else { 0.0 },
-                inverse_inertia: inverse.unwrap_or_else(Matrix3::zeros),
-                translation: V3::zeros(),
-                rotation: V3::zeros(),
-            });
-        }
-        frames
+    /// The held bodies' nodes.
+    pub(crate) fn node_ranges(&self) -> impl Iterator<Item = Range<usize>> + '_ {
+        self.bodies.iter().map(|b| b.nodes.clone())
     }
 
     /// Whether body `b` is held.

@@ -189,8 +189,8 @@ pub(crate) struct Model {
     /// Per node, its held body's rigid frame in the body–body contacts (scratch, see
     /// [`held::Held::rigid_frames`]; empty without held bodies).
     frame_of: Vec<u32>,
-    /// Body–body contact passes so far. In a world with held bodies, every other pass runs
-    /// the contacts in reverse order: a held body takes each contact's push at once, as one
+    /// Body–body contact passes so far. In a world with held or rigid bodies, every other pass
+    /// runs the contacts in reverse order: such a body takes each contact's push at once, as one
     /// rigid body, and in one fixed order the first contacts' turn biased the rest every
     /// substep (a stack of six steel boxes swayed and fell; with the order alternating it
     /// stands). Elastic bodies keep one order: alternating it, a stack of six rubber boxes
@@ -1011,7 +1011,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
             model.overlapping[k as usize] = true;
         }
     }
-    let contacts = bodies::BodyContacts {
+    let mut contacts = bodies::BodyContacts {
         constraints,
         stencil,
         inv_mass: &model.inv_mass,
@@ -1020,18 +1020,17 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         gap: bodies::REST_GAP_LAYERS * world.settings.layer.thickness_m,
         separating: model.separated_by.map(|_| &model.overlapping[..]),
         opening: MAX_SEPARATION_SPEED * dt,
-        reverse: !model.held.is_empty() && model.contact_passes % 2 == 1,
+        reverse: false,
     };
-    model.contact_passes += 1;
     model.contact_shifted = true;
     let x = &mut world.nodes.position;
-    let mut frames = if model.held.is_empty() {
-        model.frame_of.clear();
-        Vec::new()
-    } else {
-        let (mass, inv_mass) = (&world.nodes.mass, &model.inv_mass);
-        (model.held).rigid_frames(x, mass, inv_mass, &mut model.frame_of)
-    };
+    let rigid =
+        (world.rigid.iter()).map(|r| (world.bodies[r.body].nodes.clone(), !r.translation_only));
+    let bodies = model.held.node_ranges().map(|r| (r, true)).chain(rigid);
+    let state = (&x[..], &world.nodes.mass[..], &model.inv_mass[..]);
+    let mut frames = held::rigid_frames(bodies, state, &mut model.frame_of);
+    contacts.reverse = !frames.is_empty() && model.contact_passes % 2 == 1;
+    model.contact_passes += 1;
     contacts.solve(
         x,
         (&mut model.moved, &mut model.contact_shift, &mut model.shift),
