@@ -26,7 +26,7 @@
 //! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
 
 use super::contact::{friction, tangential};
-use super::held::RigidFrame;
+use super::frames::RigidFrame;
 use crate::solver::body_contact::BodyConstraint;
 use nalgebra::Vector3;
 
@@ -39,7 +39,7 @@ type V3 = Vector3<f64>;
 /// A point a little way off an edge has the direction to it, the same from both faces.
 pub(crate) const REST_GAP_LAYERS: f64 = 0.1;
 
-/// `frame_of`'s mark of a node that no held body's frame moves.
+/// `frame_of`'s mark of a node that no held or rigid body's frame moves.
 pub(crate) const NO_FRAME: u32 = u32::MAX;
 
 /// What the constraints read.
@@ -95,7 +95,7 @@ impl BodyContacts<'_> {
         {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
-            // Up to two held sides: (frame, summed weight, weighted point).
+            // Up to two sides moved as frames: (frame, summed weight, weighted point).
             let mut sides = [(NO_FRAME, 0.0, V3::zeros()); 2];
             for &(node, s) in stencil {
                 let k = node as usize;

@@ -30,6 +30,7 @@ mod bodies;
 mod cells;
 mod contact;
 mod crowding;
+mod frames;
 mod glue;
 mod held;
 mod impacts;
@@ -186,8 +187,8 @@ pub(crate) struct Model {
     collapse_memo: Option<((u64, u64), f64)>,
     /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
     held: held::Held,
-    /// Per node, its held body's rigid frame in the body–body contacts (scratch, see
-    /// [`held::Held::rigid_frames`]; empty without held bodies).
+    /// Per node, its held or rigid body's frame in the body–body contacts (scratch, see
+    /// [`frames::rigid_frames`]; empty without such bodies).
     frame_of: Vec<u32>,
     /// Body–body contact passes so far. In a world with held or rigid bodies, every other pass
     /// runs the contacts in reverse order: such a body takes each contact's push at once, as one
@@ -1028,7 +1029,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         (world.rigid.iter()).map(|r| (world.bodies[r.body].nodes.clone(), !r.translation_only));
     let bodies = model.held.node_ranges().map(|r| (r, true)).chain(rigid);
     let state = (&x[..], &world.nodes.mass[..], &model.inv_mass[..]);
-    let mut frames = held::rigid_frames(bodies, state, &mut model.frame_of);
+    let mut frames = frames::rigid_frames(bodies, state, &mut model.frame_of);
     contacts.reverse = !frames.is_empty() && model.contact_passes % 2 == 1;
     model.contact_passes += 1;
     contacts.solve(
