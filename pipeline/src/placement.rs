@@ -36,9 +36,13 @@ pub fn lift_out_of_planes(world: &mut World, bodies: &[PreparedBody]) -> Vec<Lif
     if planes.is_empty() || bodies.is_empty() {
         return Vec::new();
     }
+    let boxes: Vec<NodeBox> = (bodies.iter())
+        .map(|b| node_box(world.body_positions(b.handle).iter()))
+        .collect();
     let mut lifts = Vec::new();
-    for group in touching_groups(world, bodies) {
-        let size = group_size(world, bodies, &group);
+    for group in touching_groups(&boxes) {
+        let (lo, hi) = node_box(group.iter().flat_map(|&b| [&boxes[b].0, &boxes[b].1]));
+        let size = (hi - lo).max();
         let depth = |world: &World, plane: &Plane| {
             let deepest = (group.iter())
                 .map(|&b| -lowest_over(world, bodies[b].handle, plane))
@@ -75,13 +79,12 @@ fn move_group(world: &mut World, bodies: &[PreparedBody], group: &[usize], shift
     }
 }
 
-/// The bodies whose node boxes overlap or touch, joined into groups (in body order).
-fn touching_groups(world: &World, bodies: &[PreparedBody]) -> Vec<Vec<usize>> {
-    let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = bodies
-        .iter()
-        .map(|b| node_box(world.body_positions(b.handle)))
-        .collect();
-    let mut root: Vec<usize> = (0..bodies.len()).collect();
+/// A node box: its lowest and highest corners.
+type NodeBox = (Vector3<f64>, Vector3<f64>);
+
+/// The bodies whose node `boxes` overlap or touch, joined into groups (in body order).
+fn touching_groups(boxes: &[NodeBox]) -> Vec<Vec<usize>> {
+    let mut root: Vec<usize> = (0..boxes.len()).collect();
     fn find(root: &mut [usize], mut i: usize) -> usize {
         while root[i] != i {
             root[i] = root[root[i]];
@@ -100,8 +103,8 @@ fn touching_groups(world: &World, bodies: &[PreparedBody]) -> Vec<Vec<usize>> {
         }
     }
     let mut groups: Vec<Vec<usize>> = Vec::new();
-    let mut slot = vec![usize::MAX; bodies.len()];
-    for b in 0..bodies.len() {
+    let mut slot = vec![usize::MAX; boxes.len()];
+    for b in 0..boxes.len() {
         let r = find(&mut root, b);
         if slot[r] == usize::MAX {
             slot[r] = groups.len();
@@ -112,27 +115,11 @@ fn touching_groups(world: &World, bodies: &[PreparedBody]) -> Vec<Vec<usize>> {
     groups
 }
 
-fn node_box(xs: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
-    xs.iter().fold(
-        (
-            Vector3::repeat(f64::INFINITY),
-            Vector3::repeat(f64::NEG_INFINITY),
-        ),
-        |(lo, hi), x| (lo.inf(x), hi.sup(x)),
-    )
-}
-
-/// The longest side of the group's node box, metres.
-fn group_size(world: &World, bodies: &[PreparedBody], group: &[usize]) -> f64 {
-    let (lo, hi) = group
-        .iter()
-        .map(|&b| node_box(world.body_positions(bodies[b].handle)))
-        .fold(
-            (
-                Vector3::repeat(f64::INFINITY),
-                Vector3::repeat(f64::NEG_INFINITY),
-            ),
-            |(lo, hi), (l, h)| (lo.inf(&l), hi.sup(&h)),
-        );
-    (hi - lo).max()
+/// The box of `points`.
+fn node_box<'a>(points: impl Iterator<Item = &'a Vector3<f64>>) -> NodeBox {
+    let empty = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    points.fold(empty, |(lo, hi), x| (lo.inf(x), hi.sup(x)))
 }
