@@ -600,6 +600,27 @@ fn a_body_that_starts_through_the_floor_is_lifted_onto_it() {
     }
     let err = support::bake_scene(dir.path(), "on.toml", &scene(0.25));
     assert!(!err.contains("through the floor"), "{err}");
+    assert!(!err.contains("no floor"), "{err}");
+}
+
+/// A scene file that leaves out `floor` has none: its model falls out of the frame. The CLI
+/// says so before the bake, with how far, and what to add.
+#[test]
+fn a_scene_without_a_floor_says_its_bodies_fall_freely() {
+    let dir = tempfile::tempdir().unwrap();
+    support::cube(dir.path(), "cube.obj");
+    let scene = "[output]\npath = \"out.pc2\"\nframes = 24\n\
+                 [[body]]\nsource = \"cube.obj\"\ncells = 2\n";
+    let err = support::bake_scene(dir.path(), "fall.toml", scene);
+    assert!(
+        err.contains(
+            "no floor, wall, collider or pin: under gravity the bodies fall freely, 4.9 m"
+        ),
+        "{err}"
+    );
+    let float = format!("{scene}[world]\ngravity = 0.0\n");
+    let err = support::bake_scene(dir.path(), "float.toml", &float);
+    assert!(!err.contains("no floor"), "{err}");
 }
 
 /// A bake that folds cells says so on stderr with the frames, and for the XPBD solver what to

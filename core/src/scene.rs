@@ -929,7 +929,13 @@ impl SceneFile {
     pub fn parse(text: &str) -> Result<SceneFile, SceneParseError> {
         toml::from_str::<SceneFile>(text).map_err(|e| {
             let (line, column) = toml_error_position(text, &e);
-            let message = e.message().to_owned();
+            let mut message = e.message().to_owned();
+            if looks_like_a_shapes_file(text) {
+                message.push_str(
+                    " (this is a shapes file of [[superquadric]]s: build its mesh with \
+                     `springbake model FILE -o shape.glb`, then bake that)",
+                );
+            }
             SceneParseError {
                 message: match (line, column) {
                     (Some(l), Some(c)) => format!("line {l}, column {c}: {message}"),
@@ -942,9 +948,37 @@ impl SceneFile {
     }
 }
 
+/// Whether `text` is a `springbake model` shapes file (it has `[[superquadric]]` tables and
+/// nothing a scene has), so a scene error can say which command reads it.
+fn looks_like_a_shapes_file(text: &str) -> bool {
+    text.parse::<toml::Table>().is_ok_and(|table| {
+        table.contains_key("superquadric")
+            && !["mesh", "body", "world", "output"]
+                .iter()
+                .any(|key| table.contains_key(*key))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_shapes_file_given_as_a_scene_names_the_model_command() {
+        let text = "threshold = 0.5\nresolution = 0.005\n[[superquadric]]\nradii = [1, 1, 1]\n";
+        let error = SceneFile::parse(text).unwrap_err();
+        assert!(
+            error.message.contains("springbake model"),
+            "{}",
+            error.message
+        );
+        let scene = SceneFile::parse("[world]\nresolutio = 1\n").unwrap_err();
+        assert!(
+            !scene.message.contains("springbake model"),
+            "{}",
+            scene.message
+        );
+    }
 
     #[test]
     fn parses_the_documented_example() {

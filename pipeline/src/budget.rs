@@ -547,6 +547,37 @@ pub fn through_plane_notes(prepared: &Prepared) -> Vec<String> {
     notes
 }
 
+/// A scene with gravity and nothing to land on (no `floor`, walls, collider or pin) drops its
+/// bodies for the whole bake: a minimal scene file that leaves out `floor` sees its model
+/// fall out of the frame. Say so with how far they fall, and what to add.
+pub fn no_ground_note(prepared: &Prepared, scene: &SceneFile) -> Option<String> {
+    let world = &prepared.world;
+    let held_up = !world.settings.planes.is_empty()
+        || !scene.collider.is_empty()
+        || !scene.constraint.is_empty()
+        || !scene.attach.is_empty()
+        || !scene.manipulator.is_empty();
+    let g = world.settings.gravity.norm();
+    if held_up || g == 0.0 || prepared.bodies.is_empty() {
+        return None;
+    }
+    let seconds = scene.output.frames as f64 / scene.output.fps;
+    let fall = 0.5 * g * seconds * seconds;
+    let size = (prepared.bodies.iter())
+        .map(|body| {
+            let longest = body.lattice.dims.iter().copied().max().unwrap_or(0);
+            body.lattice.cell_size * f64::from(longest)
+        })
+        .fold(0.0, f64::max);
+    (fall > size).then(|| {
+        format!(
+            "no floor, wall, collider or pin: under gravity the bodies fall freely, {fall:.1} m \
+             over the bake's {seconds:.1} s (add `floor = HEIGHT` under [world], or set \
+             `gravity = 0` for a float)"
+        )
+    })
+}
+
 /// Refuses a bake whose estimated memory is over `limit` bytes.
 pub fn check_memory(
     prepared: &Prepared,

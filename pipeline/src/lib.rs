@@ -660,6 +660,9 @@ pub fn bake(
         for text in budget::inside_collider_notes(&prepared) {
             note(&text);
         }
+        if let Some(text) = budget::no_ground_note(&prepared, &loaded.scene) {
+            note(&text);
+        }
     }
     budget::check_memory(
         &prepared,
