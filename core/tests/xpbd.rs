@@ -8,7 +8,7 @@
 mod support;
 
 use springbake_core::material::Material;
-use springbake_core::nalgebra::Vector3;
+use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::shapes::{box_mesh, uv_sphere};
 use springbake_core::solver::manipulator::ManipulatorKey;
 use springbake_core::solver::{
@@ -929,6 +929,75 @@ fn a_stiff_or_rigid_box_rests_on_another() {
             apart > apart0 - gap - 0.5 * layer && apart < apart0,
             "{preset}: the upper box's nodes end {apart} m above the lower's (at the start \
              {apart0} m; layer {layer} m)"
+        );
+    }
+}
+
+/// A 30 cm wooden (held) or rigid box on a slab collider, `height` m above it at
+/// `velocity`: the mean of its nodes at the start and after each of `frames` frames.
+fn box_on_a_slab(
+    preset: &str,
+    height: f64,
+    velocity: Vector3<f64>,
+    frames: usize,
+) -> Vec<Vector3<f64>> {
+    use springbake_core::collide::StaticCollider;
+    let material = Material::preset(if preset == "rigid" { "rubber" } else { preset }).unwrap();
+    let m = mesh(
+        box_mesh([-0.15, height, -0.15], [0.15, height + 0.3, 0.15]),
+        6,
+    );
+    let mut w = world(&m, &material, velocity, false);
+    if preset == "rigid" {
+        w.make_rigid(BodyHandle(0)).unwrap();
+    } else {
+        assert_eq!(w.held_bodies().len(), 1, "{preset}: held");
+    }
+    // A ground plane: one open quad.
+    let points = [
+        [-3.0, 0.0, -3.0],
+        [3.0, 0.0, -3.0],
+        [3.0, 0.0, 3.0],
+        [-3.0, 0.0, 3.0],
+    ]
+    .map(|[x, y, z]| Point3::new(x, y, z));
+    let triangles = [[0, 2, 1], [0, 3, 2]];
+    w.add_collider(StaticCollider::new("ground", &points, &triangles, 0.4).unwrap());
+    let n = w.nodes.position.len() as f64;
+    let mut centres = vec![w.nodes.position.iter().sum::<Vector3<f64>>() / n];
+    for f in 1..=frames {
+        frame(&mut w, f);
+        centres.push(w.nodes.position.iter().sum::<Vector3<f64>>() / n);
+    }
+    centres
+}
+
+/// A held or rigid body on a static collider slides by Coulomb's law and lands flat as on
+/// the floor. Through its nodes, a collider's push moved only the eight round the point, and
+/// friction bounded by the depths it sank to held the box far harder than μ = 0.4: a wooden
+/// box sliding at 2 m/s stopped in 0.14 m, a rigid one in 0.25 m, where v²/(2μg) is 0.51 m;
+/// and a rigid box dropped onto the slab sank through it.
+#[test]
+fn a_stiff_or_rigid_box_slides_and_lands_on_a_collider_as_on_the_floor() {
+    let coulomb = 2.0f64.powi(2) / (2.0 * 0.4 * 9.81);
+    for preset in ["wood", "rigid"] {
+        let slid = box_on_a_slab(preset, 0.0, Vector3::new(2.0, 0.0, 0.0), 24);
+        let distance = slid[24].x - slid[0].x;
+        assert!(
+            (0.9 * coulomb..1.2 * coulomb).contains(&distance),
+            "{preset}: slid {distance} m, Coulomb {coulomb} m"
+        );
+        let dropped = box_on_a_slab(preset, 0.2, Vector3::zeros(), 36);
+        let rest = dropped[36];
+        assert!(
+            rest.x.abs() < 1e-3 && rest.z.abs() < 1e-3,
+            "{preset}: landed flat and moved sideways to {rest:?}"
+        );
+        // The lattice of 6 cells overhangs the box by at most a cell: its centre is 0.15 m up.
+        assert!(
+            (0.13..0.17).contains(&rest.y),
+            "{preset}: rests with its centre {} m above the slab",
+            rest.y
         );
     }
 }

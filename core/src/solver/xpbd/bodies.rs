@@ -26,7 +26,7 @@
 //! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
 
 use super::contact::{friction, tangential};
-use super::frames::RigidFrame;
+use super::frames::{apply_frames, RigidFrame};
 use crate::solver::body_contact::BodyConstraint;
 use nalgebra::Vector3;
 
@@ -169,17 +169,7 @@ impl BodyContacts<'_> {
                 }
             }
         }
-        for f in frames.iter() {
-            if f.translation == V3::zeros() && f.rotation == V3::zeros() {
-                continue;
-            }
-            for k in f.nodes.clone() {
-                let to = f.moved(x[k]);
-                shift[k] += to - x[k];
-                x[k] = to;
-                moved[k] = true;
-            }
-        }
+        apply_frames(frames, x, shift, moved);
         out
     }
 }

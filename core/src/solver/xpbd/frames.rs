@@ -1,6 +1,7 @@
-//! Held and rigid bodies as rigid bodies in the body–body contacts ([`super::bodies`]): each
-//! such body's frame for one contact pass (its centre, inverse mass and inertia, and the
-//! motion the pass's contacts give it), and which frame each node belongs to.
+//! Held and rigid bodies as rigid bodies in the contact passes (body–body, [`super::bodies`];
+//! static colliders, [`super::rigid_contacts`]): each such body's frame for one contact pass
+//! (its centre, inverse mass and inertia, and the motion the pass's contacts give it), and
+//! which frame each node belongs to.
 
 use super::bodies::NO_FRAME;
 use super::V3;
@@ -91,5 +92,26 @@ impl RigidFrame {
     pub fn push(&mut self, p: V3, impulse: V3) {
         self.translation += impulse * self.inverse_mass;
         self.rotation += self.inverse_inertia * (p - self.centre).cross(&impulse);
+    }
+}
+
+/// Move each frame's nodes in `x` by the motion its pass gave it, adding that to `shift` and
+/// marking them `moved`.
+pub(crate) fn apply_frames(
+    frames: &[RigidFrame],
+    x: &mut [V3],
+    shift: &mut [V3],
+    moved: &mut [bool],
+) {
+    for f in frames {
+        if f.translation == V3::zeros() && f.rotation == V3::zeros() {
+            continue;
+        }
+        for k in f.nodes.clone() {
+            let to = f.moved(x[k]);
+            shift[k] += to - x[k];
+            x[k] = to;
+            moved[k] = true;
+        }
     }
 }

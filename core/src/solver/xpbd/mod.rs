@@ -30,6 +30,7 @@ mod bodies;
 mod cells;
 mod contact;
 mod crowding;
+mod frame_contacts;
 mod frames;
 mod glue;
 mod held;
@@ -190,6 +191,9 @@ pub(crate) struct Model {
     /// Per node, its held or rigid body's frame in the body–body contacts (scratch, see
     /// [`frames::rigid_frames`]; empty without such bodies).
     frame_of: Vec<u32>,
+    /// The static colliders' contacts of held and rigid bodies' points in a substep
+    /// (scratch, see [`frame_contacts`]).
+    frame_contacts: Vec<frame_contacts::FrameContact>,
     /// Body–body contact passes so far. In a world with held or rigid bodies, every other pass
     /// runs the contacts in reverse order: such a body takes each contact's push at once, as one
     /// rigid body, and in one fixed order the first contacts' turn biased the rest every
@@ -385,6 +389,7 @@ impl Model {
             collapse_memo: None,
             held,
             frame_of: Vec::new(),
+            frame_contacts: Vec::new(),
             contact_passes: 0,
             impacts: ImpactHold::default(),
         }
@@ -1024,12 +1029,8 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         reverse: false,
     };
     model.contact_shifted = true;
+    let mut frames = contact_frames(world, &model.held, &model.inv_mass, &mut model.frame_of);
     let x = &mut world.nodes.position;
-    let rigid =
-        (world.rigid.iter()).map(|r| (world.bodies[r.body].nodes.clone(), !r.translation_only));
-    let bodies = model.held.node_ranges().map(|r| (r, true)).chain(rigid);
-    let state = (&x[..], &world.nodes.mass[..], &model.inv_mass[..]);
-    let mut frames = frames::rigid_frames(bodies, state, &mut model.frame_of);
     contacts.reverse = !frames.is_empty() && model.contact_passes % 2 == 1;
     model.contact_passes += 1;
     contacts.solve(
@@ -1037,6 +1038,21 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         (&mut model.moved, &mut model.contact_shift, &mut model.shift),
         (&mut frames, &model.frame_of),
     )
+}
+
+/// The held and rigid bodies' frames for a contact pass at the positions now
+/// ([`frames::rigid_frames`]), with `frame_of` per node.
+fn contact_frames(
+    world: &World,
+    held: &held::Held,
+    inv_mass: &[f64],
+    frame_of: &mut Vec<u32>,
+) -> Vec<frames::RigidFrame> {
+    let rigid =
+        (world.rigid.iter()).map(|r| (world.bodies[r.body].nodes.clone(), !r.translation_only));
+    let bodies = held.node_ranges().map(|r| (r, true)).chain(rigid);
+    let state = (&world.nodes.position[..], &world.nodes.mass[..], inv_mass);
+    frames::rigid_frames(bodies, state, frame_of)
 }
 
 /// The capsules of the substep from `time` to `time + dt`, each at the substep's end and at

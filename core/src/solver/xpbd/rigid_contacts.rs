@@ -4,8 +4,11 @@
 //! no node), or one after the other in visiting order when the world has static colliders.
 //! The constraint math is [`super::contact`]'s; this module owns the passes over the points.
 
+use super::bodies::NO_FRAME;
 use super::cells::PointGroups;
 use super::contact::{resolve_colliders, ColliderContact, PointContact, Surfaces};
+use super::frame_contacts;
+use super::frames::apply_frames;
 use super::{push_capsules, Model, StepOutput, V3};
 use crate::solver::manipulator::Capsule;
 use crate::solver::team::{self, Chunks, Disjoint};
@@ -82,6 +85,14 @@ fn rigid_contacts_with(
         out.capsule_force += force;
         out.capsule_work += work;
     }
+    // Held and rigid bodies take the colliders' pushes as rigid bodies (see `frames`).
+    let mut frames = if colliders {
+        let frame_of = &mut model.frame_of;
+        super::contact_frames(world, &model.held, &model.inv_mass, frame_of)
+    } else {
+        Vec::new()
+    };
+    model.frame_contacts.clear();
     let x = &mut world.nodes.position;
     let (statics, boxes) = world.body_contact.colliders_and_boxes();
     let surface_body = &world.surface.body;
@@ -99,7 +110,13 @@ fn rigid_contacts_with(
         out.capsule_work += sums.work;
         return out;
     }
-    for (&i, visit) in model.points.order.iter().zip(model.visits.iter()) {
+    for (o, (&i, visit)) in model
+        .points
+        .order
+        .iter()
+        .zip(model.visits.iter())
+        .enumerate()
+    {
         let i = i as usize;
         if colliders {
             model.collider_touch[i] = None;
@@ -110,7 +127,10 @@ fn rigid_contacts_with(
             continue;
         }
         let ids = ids.map(|n| n as usize);
-        let nodes = (ids.map(|n| x[n]), ids.map(|n| prev[n]), ids.map(|n| w[n]));
+        // A point's eight nodes are one body's: in a frame, at the pass's motion so far.
+        let frame = frame_of_point(&model.frame_of, ids[0]);
+        let at = |n: usize| frame.map_or(x[n], |f| frames[f].moved(x[n]));
+        let nodes = (ids.map(at), ids.map(|n| prev[n]), ids.map(|n| w[n]));
         let (p, p_prev, denominator) = interpolate(weights, &nodes.0, &nodes.1, &nodes.2);
         if denominator <= 0.0 {
             continue;
@@ -158,7 +178,19 @@ fn rigid_contacts_with(
             );
             model.in_contact.push(i as u32);
         }
-        let correction = c.correction + held.correction;
+        let mut correction = c.correction + held.correction;
+        if let (Some(f), Some((k, normal))) = (frame, held.deepest) {
+            // The collider's push moves the whole body, solved with the body's other points
+            // after the pass (`frame_contacts`).
+            let at = p + c.correction;
+            model.frame_contacts.push(frame_contacts::FrameContact::new(
+                (o as u32, f as u32),
+                (normal, at + normal * held.correction.dot(&normal)),
+                p_prev,
+                statics[k as usize].friction,
+            ));
+            correction = c.correction;
+        }
         for (&n, weight) in ids.iter().zip(weights) {
             let step = correction * (weight * w[n] / denominator);
             x[n] += step;
@@ -166,7 +198,18 @@ fn rigid_contacts_with(
             model.moved[n] = true;
         }
     }
+    let pushes = &mut model.frame_contacts;
+    frame_contacts::solve(&mut frames, pushes, x, &model.visits);
+    apply_frames(&frames, x, &mut model.contact_shift, &mut model.moved);
     out
+}
+
+/// The frame (index into the pass's frames) of the body whose nodes `first` is one of, if it
+/// is held or rigid.
+fn frame_of_point(frame_of: &[u32], first: usize) -> Option<usize> {
+    (frame_of.get(first).copied())
+        .filter(|&f| f != NO_FRAME)
+        .map(|f| f as usize)
 }
 
 /// What a task of the points' pass found: whether a point touched, the deepest, and the
