@@ -25,6 +25,9 @@ use super::{PointVisit, V3};
 
 /// Normal passes over a body's contact points (after the first push at their centre).
 const NORMAL_PASSES: usize = 16;
+/// How closely a body's contact normals must agree (their mean's length, 1 when parallel) for
+/// the first push at their centre.
+const NORMALS_AGREE: f64 = 0.95;
 /// Friction passes over them.
 const FRICTION_PASSES: usize = 4;
 
@@ -151,7 +154,9 @@ fn push_at_centres(
     }
     let mut shares = vec![0.0; frames.len()];
     for (f, &(points, normals, depths, count)) in sums.iter().enumerate() {
-        if count == 0 || depths <= 0.0 || normals.norm() <= 0.0 {
+        // Contacts on faces that meet at an angle (a box in a corner or a groove) are left to
+        // the passes: one push along their mean normal would move the body the wrong way.
+        if count == 0 || depths <= 0.0 || normals.norm() < NORMALS_AGREE * count as f64 {
             continue;
         }
         let (centre, normal) = (points / count as f64, normals.normalize());

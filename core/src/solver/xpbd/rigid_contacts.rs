@@ -179,17 +179,27 @@ fn rigid_contacts_with(
             model.in_contact.push(i as u32);
         }
         let mut correction = c.correction + held.correction;
+        // A two-sided collider's face that points away from a rigid body's centre was met from
+        // its far side (a box's corner pushed past the bottom of a V-shaped groove): pushing
+        // the whole body that way threw it; the face on its near side holds the point.
+        let far_side = |f: usize, k: u32, n: V3| {
+            statics[k as usize].two_sided && (p - frames[f].centre).dot(&n) > 0.0
+        };
         if let (Some(f), Some((k, normal))) = (frame, held.deepest) {
-            // The collider's push moves the whole body, solved with the body's other points
-            // after the pass (`frame_contacts`).
-            let at = p + c.correction;
-            model.frame_contacts.push(frame_contacts::FrameContact::new(
-                (o as u32, f as u32),
-                (normal, at + normal * held.correction.dot(&normal)),
-                p_prev,
-                statics[k as usize].friction,
-            ));
-            correction = c.correction;
+            if far_side(f, k, normal) {
+                correction = c.correction;
+            } else {
+                // The collider's push moves the whole body, solved with the body's other points
+                // after the pass (`frame_contacts`).
+                let at = p + c.correction;
+                model.frame_contacts.push(frame_contacts::FrameContact::new(
+                    (o as u32, f as u32),
+                    (normal, at + normal * held.correction.dot(&normal)),
+                    p_prev,
+                    statics[k as usize].friction,
+                ));
+                correction = c.correction;
+            }
         }
         for (&n, weight) in ids.iter().zip(weights) {
             let step = correction * (weight * w[n] / denominator);
