@@ -21,10 +21,13 @@
 
 use super::contact::tangential;
 use super::frames::RigidFrame;
-use super::{PointVisit, V3};
+use super::V3;
 
 /// Normal passes over a body's contact points (after the first push at their centre).
 const NORMAL_PASSES: usize = 16;
+/// A normal pass that moves no point by more than this, m, ends them (the same passes on
+/// any thread count: the solve is serial).
+const CONVERGED: f64 = 1e-7;
 /// How closely a body's contact normals must agree (their mean's length, 1 when parallel) for
 /// the first push at their centre.
 const NORMALS_AGREE: f64 = 0.95;
@@ -34,8 +37,8 @@ const FRICTION_PASSES: usize = 4;
 /// A held or rigid body's display-surface point that a static collider holds this substep.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct FrameContact {
-    /// The point (index into the visiting order) and its body's frame.
-    visit: u32,
+    /// The point, where the pass left it before the frames moved, and its body's frame.
+    point: V3,
     frame: u32,
     /// The collider face's normal, and a point of the face's plane.
     normal: V3,
@@ -51,13 +54,13 @@ pub(crate) struct FrameContact {
 
 impl FrameContact {
     pub(crate) fn new(
-        (visit, frame): (u32, u32),
+        (point, frame): (V3, u32),
         (normal, on_face): (V3, V3),
         previous: V3,
         friction: f64,
     ) -> FrameContact {
         FrameContact {
-            visit,
+            point,
             frame,
             normal,
             on_face,
@@ -69,30 +72,20 @@ impl FrameContact {
     }
 }
 
-/// Where point `visit` is with its frame's motion so far (`x` the node positions before it).
-fn point_now(frame: &RigidFrame, visit: &PointVisit, x: &[V3]) -> V3 {
-    (0..8)
-        .map(|c| frame.moved(x[visit.nodes[c] as usize]) * visit.weights[c])
-        .sum()
-}
-
-/// Solve `contacts` on `frames` (module docs); `x` the node positions, which the frames'
-/// motion is applied to afterwards.
-pub(crate) fn solve(
-    frames: &mut [RigidFrame],
-    contacts: &mut [FrameContact],
-    x: &[V3],
-    visits: &[PointVisit],
-) {
+/// Solve `contacts` on `frames` (module docs); the frames' motion is applied to their nodes
+/// afterwards.
+pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FrameContact]) {
     if contacts.is_empty() {
         return;
     }
-    push_at_centres(frames, contacts, x, visits);
+    push_at_centres(frames, contacts);
     for pass in 0..NORMAL_PASSES {
+        // The most a pass moved a point: passes stop once none moves more than CONVERGED.
+        let mut largest = 0.0f64;
         for k in alternating(contacts.len(), pass) {
             let c = &mut contacts[k];
             let frame = &mut frames[c.frame as usize];
-            let p = point_now(frame, &visits[c.visit as usize], x);
+            let p = frame.moved(c.point);
             let along = frame.inverse_mass_at(p, c.normal);
             if along <= 0.0 {
                 continue;
@@ -100,14 +93,18 @@ pub(crate) fn solve(
             let depth = (c.on_face - p).dot(&c.normal);
             let total = (c.impulse + depth / along).max(0.0);
             frame.push(p, c.normal * (total - c.impulse));
+            largest = largest.max((total - c.impulse).abs() * along);
             c.impulse = total;
+        }
+        if largest <= CONVERGED {
+            break;
         }
     }
     for pass in 0..FRICTION_PASSES {
         for k in alternating(contacts.len(), pass) {
             let c = &mut contacts[k];
             let frame = &mut frames[c.frame as usize];
-            let p = point_now(frame, &visits[c.visit as usize], x);
+            let p = frame.moved(c.point);
             let slip = tangential(p - c.previous, &c.normal);
             let length = slip.norm();
             if length <= 0.0 {
@@ -135,17 +132,12 @@ fn alternating(n: usize, pass: usize) -> impl Iterator<Item = usize> {
 
 /// Per frame, one push at the centre of its contact points along their mean normal that
 /// brings their mean depth to zero, shared among the points as their first impulses.
-fn push_at_centres(
-    frames: &mut [RigidFrame],
-    contacts: &mut [FrameContact],
-    x: &[V3],
-    visits: &[PointVisit],
-) {
+fn push_at_centres(frames: &mut [RigidFrame], contacts: &mut [FrameContact]) {
     // Per frame: the points' sum, the normals' sum, the depths' sum and the count.
     let mut sums = vec![(V3::zeros(), V3::zeros(), 0.0, 0usize); frames.len()];
     for c in contacts.iter() {
         let frame = &frames[c.frame as usize];
-        let p = point_now(frame, &visits[c.visit as usize], x);
+        let p = frame.moved(c.point);
         let s = &mut sums[c.frame as usize];
         s.0 += p;
         s.1 += c.normal;

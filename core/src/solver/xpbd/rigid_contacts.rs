@@ -110,13 +110,7 @@ fn rigid_contacts_with(
         out.capsule_work += sums.work;
         return out;
     }
-    for (o, (&i, visit)) in model
-        .points
-        .order
-        .iter()
-        .zip(model.visits.iter())
-        .enumerate()
-    {
+    for (&i, visit) in model.points.order.iter().zip(model.visits.iter()) {
         let i = i as usize;
         if colliders {
             model.collider_touch[i] = None;
@@ -127,10 +121,10 @@ fn rigid_contacts_with(
             continue;
         }
         let ids = ids.map(|n| n as usize);
-        // A point's eight nodes are one body's: in a frame, at the pass's motion so far.
+        // A point's eight nodes are one body's: a held or rigid one's frame, if any (it moves
+        // only after the pass).
         let frame = frame_of_point(&model.frame_of, ids[0]);
-        let at = |n: usize| frame.map_or(x[n], |f| frames[f].moved(x[n]));
-        let nodes = (ids.map(at), ids.map(|n| prev[n]), ids.map(|n| w[n]));
+        let nodes = (ids.map(|n| x[n]), ids.map(|n| prev[n]), ids.map(|n| w[n]));
         let (p, p_prev, denominator) = interpolate(weights, &nodes.0, &nodes.1, &nodes.2);
         if denominator <= 0.0 {
             continue;
@@ -193,7 +187,7 @@ fn rigid_contacts_with(
                 // after the pass (`frame_contacts`).
                 let at = p + c.correction;
                 model.frame_contacts.push(frame_contacts::FrameContact::new(
-                    (o as u32, f as u32),
+                    (at, f as u32),
                     (normal, at + normal * held.correction.dot(&normal)),
                     p_prev,
                     statics[k as usize].friction,
@@ -209,7 +203,7 @@ fn rigid_contacts_with(
         }
     }
     let pushes = &mut model.frame_contacts;
-    frame_contacts::solve(&mut frames, pushes, x, &model.visits);
+    frame_contacts::solve(&mut frames, pushes);
     apply_frames(&frames, x, &mut model.contact_shift, &mut model.moved);
     out
 }
