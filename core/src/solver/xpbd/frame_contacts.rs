@@ -18,6 +18,11 @@
 //! Coulomb friction at each point on its slip over the substep, bounded by μ times its
 //! normal impulse, the same way. Impulses here are positional (kg·m): a push `J` along `n`
 //! at `p` moves the point by `J` times the body's inverse mass there along `n`.
+//!
+//! The points' pass leaves out a two-sided collider's face whose normal points away from the
+//! body's centre: it was met from its far side (a box's corner pushed past the bottom of a
+//! V-shaped groove meets the other wall from behind), and its push, taken by the whole body,
+//! threw a wooden box a metre along the groove; the face on the near side holds the point.
 
 use super::contact::tangential;
 use super::frames::RigidFrame;
@@ -28,11 +33,12 @@ const NORMAL_PASSES: usize = 16;
 /// A normal pass that moves no point by more than this, m, ends them (the same passes on
 /// any thread count: the solve is serial).
 const CONVERGED: f64 = 1e-7;
-/// How closely a body's contact normals must agree (their mean's length, 1 when parallel) for
-/// the first push at their centre.
-const NORMALS_AGREE: f64 = 0.95;
-/// Friction passes over them.
+/// Friction passes over the contact points.
 const FRICTION_PASSES: usize = 4;
+/// How closely a body's contact normals must agree (their mean's length, 1 when parallel) for
+/// the first push at their centre: in a corner or a groove one push along their mean would
+/// move the body the wrong way, and the passes alone solve it.
+const NORMALS_AGREE: f64 = 0.95;
 
 /// A held or rigid body's display-surface point that a static collider holds this substep.
 #[derive(Debug, Clone, Copy)]
@@ -146,8 +152,6 @@ fn push_at_centres(frames: &mut [RigidFrame], contacts: &mut [FrameContact]) {
     }
     let mut shares = vec![0.0; frames.len()];
     for (f, &(points, normals, depths, count)) in sums.iter().enumerate() {
-        // Contacts on faces that meet at an angle (a box in a corner or a groove) are left to
-        // the passes: one push along their mean normal would move the body the wrong way.
         if count == 0 || depths <= 0.0 || normals.norm() < NORMALS_AGREE * count as f64 {
             continue;
         }

@@ -1,8 +1,10 @@
 //! Stage 4b of the substep: contact with the rigid surfaces (floor, walls, capsules) and the
 //! static colliders. Nodes that take contact are projected in parallel chunks; the
 //! display-surface points a colour of cells at a time on the [`team`] (a colour's cells share
-//! no node), or one after the other in visiting order when the world has static colliders.
-//! The constraint math is [`super::contact`]'s; this module owns the passes over the points.
+//! no node), or one after the other in visiting order when the world has static colliders
+//! (a held or rigid body's points in them are then solved together on its rigid frame,
+//! [`super::frame_contacts`]). The constraint math is [`super::contact`]'s; this module owns
+//! the passes over the points.
 
 use super::bodies::NO_FRAME;
 use super::cells::PointGroups;
@@ -173,18 +175,14 @@ fn rigid_contacts_with(
             model.in_contact.push(i as u32);
         }
         let mut correction = c.correction + held.correction;
-        // A two-sided collider's face that points away from a rigid body's centre was met from
-        // its far side (a box's corner pushed past the bottom of a V-shaped groove): pushing
-        // the whole body that way threw it; the face on its near side holds the point.
-        let far_side = |f: usize, k: u32, n: V3| {
-            statics[k as usize].two_sided && (p - frames[f].centre).dot(&n) > 0.0
-        };
         if let (Some(f), Some((k, normal))) = (frame, held.deepest) {
-            if far_side(f, k, normal) {
-                correction = c.correction;
-            } else {
-                // The collider's push moves the whole body, solved with the body's other points
-                // after the pass (`frame_contacts`).
+            // The collider's push moves the whole body, solved with the body's other points
+            // after the pass; a two-sided collider's face met from its far side is left to the
+            // near one (`frame_contacts`).
+            correction = c.correction;
+            let far_side =
+                statics[k as usize].two_sided && (p - frames[f].centre).dot(&normal) > 0.0;
+            if !far_side {
                 let at = p + c.correction;
                 model.frame_contacts.push(frame_contacts::FrameContact::new(
                     (at, f as u32),
@@ -192,7 +190,6 @@ fn rigid_contacts_with(
                     p_prev,
                     statics[k as usize].friction,
                 ));
-                correction = c.correction;
             }
         }
         for (&n, weight) in ids.iter().zip(weights) {
@@ -202,8 +199,7 @@ fn rigid_contacts_with(
             model.moved[n] = true;
         }
     }
-    let pushes = &mut model.frame_contacts;
-    frame_contacts::solve(&mut frames, pushes);
+    frame_contacts::solve(&mut frames, &mut model.frame_contacts);
     apply_frames(&frames, x, &mut model.contact_shift, &mut model.moved);
     out
 }
