@@ -614,7 +614,8 @@ fn a_scene_without_a_floor_says_its_bodies_fall_freely() {
     let err = support::bake_scene(dir.path(), "fall.toml", scene);
     assert!(
         err.contains(
-            "no floor, wall, collider or pin: under gravity the bodies fall freely, 4.9 m"
+            "no floor, wall, collider or pin: under gravity the bodies fall freely, 4.5 m over \
+             the bake's 1.0 s"
         ),
         "{err}"
     );

@@ -561,7 +561,8 @@ pub fn no_ground_note(prepared: &Prepared, scene: &SceneFile) -> Option<String> 
     if held_up || g == 0.0 || prepared.bodies.is_empty() {
         return None;
     }
-    let seconds = scene.output.frames as f64 / scene.output.fps;
+    // Frame 1 is the start: the bake spans one frame fewer.
+    let seconds = scene.output.frames.saturating_sub(1) as f64 / scene.output.fps;
     let fall = 0.5 * g * seconds * seconds;
     let size = (prepared.bodies.iter())
         .map(|body| {

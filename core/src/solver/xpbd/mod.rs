@@ -188,8 +188,8 @@ pub(crate) struct Model {
     collapse_memo: Option<((u64, u64), f64)>,
     /// Bodies too stiff for their lattice to bend, held to their rigid motion (`held`).
     held: held::Held,
-    /// Per node, its held or rigid body's frame in the body–body contacts (scratch, see
-    /// [`frames::rigid_frames`]; empty without such bodies).
+    /// Per node, its held or rigid body's frame in a contact pass, body–body or with the
+    /// static colliders (scratch, see [`frames::rigid_frames`]; empty without such bodies).
     frame_of: Vec<u32>,
     /// The static colliders' contacts of held and rigid bodies' points in a substep
     /// (scratch, see [`frame_contacts`]).
