@@ -296,7 +296,16 @@ impl Restitution {
                     continue;
                 }
                 let after = rigid_motion_in(&world.nodes, nodes.clone(), &mut self.scratch);
-                bounce(world, nodes.clone(), before, after, contacts, s.e * weight);
+                let friction = match world.settings.planes.get(slot) {
+                    Some(_) => world.settings.layer.friction,
+                    None => world.body_contact.colliders[slot - planes].friction,
+                };
+                let impact = Impact {
+                    contacts,
+                    e: s.e * weight,
+                    friction,
+                };
+                bounce(world, nodes.clone(), before, after, impact);
             }
         }
     }
@@ -317,8 +326,11 @@ fn bounce(
     range: std::ops::Range<usize>,
     before: &RigidMotion,
     after: RigidMotion,
-    contacts: &[(V3, V3)],
-    e: f64,
+    Impact {
+        contacts,
+        e,
+        friction,
+    }: Impact,
 ) {
     /// Passes over the contact points.
     const PASSES: usize = 16;
@@ -355,6 +367,7 @@ fn bounce(
         let (p, n) = contacts[k];
         (p, n, target(&p, &n))
     });
+    coulomb(&mut rigid, contacts, &impulses, friction);
     let (dv, dw) = (
         rigid.velocity - after.velocity,
         rigid.angular_velocity - after.angular_velocity,
@@ -362,6 +375,50 @@ fn bounce(
     let nodes = &mut world.nodes;
     for i in range {
         nodes.velocity[i] += dv + dw.cross(&(nodes.position[i] - after.centre));
+    }
+}
+
+/// A new impact on one plane or collider: its contact points with their normals, the
+/// restitution it gets and its friction coefficient.
+struct Impact<'a> {
+    contacts: &'a [(V3, V3)],
+    e: f64,
+    friction: f64,
+}
+
+/// Coulomb friction with a bounce's normal impulses (`normal[k]` at `contacts[k]`): at each
+/// point, an impulse against its slip on the surface that stops the slip, bounded by
+/// `friction` times the point's normal impulse; sequential impulses, accumulated per point,
+/// a few passes in alternating order. The contact projection stops the approach with its
+/// friction, but the bounce's impulse is the larger part of the impact's (it also stops what
+/// the projection left approaching), and it had none: a steel box thrown at 2 m/s onto the
+/// floor from 30 cm hopped on at 2 m/s for a second and came to rest 3.9 m away (1.2 m now),
+/// and a wooden box landing from 2 mm on a 30° ramp slid 13 % farther in the next second
+/// than Coulomb's law lets it (7 % now, most of it the bounces').
+fn coulomb(rigid: &mut RigidMotion, contacts: &[(V3, V3)], normal: &[f64], friction: f64) {
+    /// Passes over the contact points.
+    const PASSES: usize = 4;
+    let mut totals = vec![V3::zeros(); contacts.len()];
+    let count = contacts.len();
+    for pass in 0..PASSES {
+        for k in 0..count {
+            let k = if pass % 2 == 1 { count - 1 - k } else { k };
+            let (p, n) = contacts[k];
+            let v = rigid.velocity_at(&p);
+            let slip = v - n * v.dot(&n);
+            let speed = slip.norm();
+            if speed <= 0.0 {
+                continue;
+            }
+            let t = slip / speed;
+            let mut total = totals[k] - t * (speed / inverse_mass_along(rigid, p, t));
+            let limit = friction * normal[k];
+            if total.norm() > limit {
+                total *= limit / total.norm();
+            }
+            nudge(rigid, p, total - totals[k]);
+            totals[k] = total;
+        }
     }
 }
 
