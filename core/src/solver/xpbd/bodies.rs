@@ -86,6 +86,8 @@ impl BodyContacts<'_> {
     ) -> Touch {
         let mut out = Touch::default();
         let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
+        // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
+        let mut frame_rest = vec![V3::zeros(); frames.len()];
         let forward = (!self.reverse).then(|| self.constraints.iter());
         let backward = self.reverse.then(|| self.constraints.iter().rev());
         for c in forward
@@ -139,7 +141,16 @@ impl BodyContacts<'_> {
             if separating {
                 let left = c.normal * ((push - allowed) / inverse_mass);
                 for &(node, s) in stencil {
-                    rest[node as usize] += left * (s * self.inv_mass[node as usize]);
+                    if frame(node as usize) == NO_FRAME {
+                        rest[node as usize] += left * (s * self.inv_mass[node as usize]);
+                    }
+                }
+                for (side, point) in sides.iter().zip(&points) {
+                    let (f, sum, _) = *side;
+                    if f != NO_FRAME && sum != 0.0 {
+                        let w = frames[f as usize].inverse_mass_at(*point, c.normal);
+                        keep_apart(&mut frame_rest[f as usize], left * (sum * w));
+                    }
                 }
                 out.rested |= allowed < push;
                 push = allowed;
@@ -170,6 +181,24 @@ impl BodyContacts<'_> {
             }
         }
         apply_frames(frames, x, shift, moved);
+        for (f, by) in frames.iter().zip(&frame_rest) {
+            if *by != V3::zeros() {
+                f.nodes.clone().for_each(|k| rest[k] += by);
+            }
+        }
         out
+    }
+}
+
+/// Grow a held or rigid body's move `by` (what its separating contacts leave to `rest`) so
+/// that it moves at least `apart` along `apart`: the contacts are met one after the other
+/// without the body moving in between, and each asks the whole body to move, so their moves
+/// are not summed. Added up, a wooden box set 1 mm above a wooden slab (both held) was moved
+/// 19 cm up at the first substep by its few hundred points on the slab, and fell back.
+fn keep_apart(by: &mut V3, apart: V3) {
+    let length = apart.norm();
+    if length > 0.0 {
+        let along = apart / length;
+        *by += along * (length - by.dot(&along)).max(0.0);
     }
 }
