@@ -5,7 +5,9 @@
 use crate::PipelineError;
 use springbake_core::cage::{self, Cage, Primitive};
 use springbake_core::lattice::fill::cell_fill;
-use springbake_core::lattice::{fit_lattice, surface_samples, Embedding, FitSettings, Lattice};
+use springbake_core::lattice::{
+    fit_lattice, surface_samples_with_normals, Embedding, FitSettings, Lattice,
+};
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
 use springbake_core::scene::{BodyKind, BodySection, ModelKind, SceneFile, SpringsSpec};
@@ -177,14 +179,16 @@ pub fn add_body(
         apply_region(world, handle, &region).map_err(|e| format!("region[{i}]: {e}"))?;
     }
     // The mesh, not its model, touches the floor, walls and manipulators.
-    let (samples, areas) = surface_samples(points, triangles, 0.5 * analysis.spacing());
+    let samples = surface_samples_with_normals(points, triangles, 0.5 * analysis.spacing());
+    let (normals, areas) = (&samples.normals, &samples.areas);
+    let samples_at = &samples.points;
     let (embedding, lattice, model, note) = match analysis {
         Analysis::Lattice(l) => {
-            world.add_contact_surface(handle, &l, &samples, &areas);
+            world.add_contact_surface_with_normals(handle, &l, samples_at, areas, normals);
             (Embedding::new(&l, points), l, "lattice", None)
         }
         Analysis::Cage(c) => {
-            c.add_contact_surface(world, handle, &samples, &areas);
+            c.add_contact_surface(world, handle, samples_at, areas);
             (c.embed(points), c.lattice_view(), c.model, c.note)
         }
     };

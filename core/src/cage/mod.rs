@@ -286,6 +286,7 @@ impl Cage {
             s.share.push(shares[i]);
             s.body.push(body.0 as u32);
             s.reach.push(reach);
+            s.rest_normal.push(Vector3::zeros());
             s.body_mass.push(if total_share > 0.0 {
                 body_mass * shares[i] / total_share
             } else {

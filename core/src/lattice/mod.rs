@@ -23,7 +23,7 @@ pub mod surface;
 
 pub use embed::Embedding;
 pub use fit::{fit_lattice, FitError, FitSettings, Resolution, BYTES_PER_NODE, CORNERS};
-pub use surface::{surface_samples, VERTEX_CLUSTER};
+pub use surface::{surface_samples, surface_samples_with_normals, SurfaceSamples, VERTEX_CLUSTER};
 
 use nalgebra::{Point3, Vector3};
 

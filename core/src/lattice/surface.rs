@@ -21,6 +21,11 @@ use nalgebra::Point3;
 /// many repeated large triangles asked for 24 GB (issue 17).
 pub const MAX_GRID_SAMPLES: usize = 1 << 20;
 
+/// How flat the surface round a vertex cluster must be for its samples to carry a normal: the
+/// length of the area-weighted mean of its faces' normals (1 where they agree; a cube's
+/// corner 0.58, its edge 0.71).
+const FLAT_CLUSTER: f64 = 0.95;
+
 /// Side of a vertex cluster, in sample spacings.
 pub const VERTEX_CLUSTER: f64 = 0.5;
 
@@ -49,12 +54,36 @@ fn grid_samples(positions: &[Point3<f64>], triangles: &[[u32; 3]], spacing: f64)
         .fold(0usize, usize::saturating_add)
 }
 
-/// Sample points and the surface area (m²) each stands for.
+/// Sample points and the surface area (m²) each stands for ([`surface_samples_with_normals`]
+/// without the normals).
 pub fn surface_samples(
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],
     spacing: f64,
 ) -> (Vec<Point3<f64>>, Vec<f64>) {
+    let samples = surface_samples_with_normals(positions, triangles, spacing);
+    (samples.points, samples.areas)
+}
+
+/// A mesh's contact samples ([`surface_samples_with_normals`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceSamples {
+    pub points: Vec<Point3<f64>>,
+    /// The surface area each stands for, m².
+    pub areas: Vec<f64>,
+    /// The surface's unit normal at each, as the triangles are wound, where the surface is
+    /// flat round it: an inner grid sample's triangle's, a vertex's the area-weighted mean of
+    /// the triangles round its cluster. Zero where it has none: a grid sample on its
+    /// triangle's edges, a sliver's samples, a cluster at a corner or a crease.
+    pub normals: Vec<nalgebra::Vector3<f64>>,
+}
+
+/// Sample points, the surface area (m²) each stands for and the surface's normal there.
+pub fn surface_samples_with_normals(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    spacing: f64,
+) -> SurfaceSamples {
     // Coarsen the whole mesh's grid until it fits the cap (samples fall as 1/spacing²).
     let mut spacing = spacing;
     for _ in 0..64 {
@@ -65,28 +94,34 @@ pub fn surface_samples(
         spacing *= (count as f64 / MAX_GRID_SAMPLES as f64).sqrt().max(1.01);
     }
     let mut vertex_area = vec![0.0; positions.len()];
-    let mut points = Vec::new();
-    let mut areas = Vec::new();
+    // Per vertex, the area-weighted sum of the normals of the triangles round it.
+    let mut vertex_normal = vec![nalgebra::Vector3::zeros(); positions.len()];
+    let mut out = SurfaceSamples::default();
     for t in triangles {
         let [a, b, c] = t.map(|i| positions[i as usize]);
-        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        let cross = (b - a).cross(&(c - a));
+        let area = 0.5 * cross.norm();
         if area <= 0.0 || !area.is_finite() {
             continue;
         }
+        let normal = cross / cross.norm();
         let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
         let n = subdivisions(longest, spacing);
         // Up to twice the spacing the triangle's own vertices are close enough.
         if n <= 2 {
             for &i in t {
                 vertex_area[i as usize] += area / 3.0;
+                vertex_normal[i as usize] += normal * (area / 3.0);
             }
             continue;
         }
         if let Some(strip) = sliver_samples(&[a, b, c], area, spacing) {
             let share = area / strip.len() as f64;
+            // A sliver is all rim: its samples lie within a spacing of its edges.
             for p in strip {
-                points.push(p);
-                areas.push(share);
+                out.points.push(p);
+                out.areas.push(share);
+                out.normals.push(nalgebra::Vector3::zeros());
             }
             continue;
         }
@@ -94,18 +129,31 @@ pub fn surface_samples(
         for i in 0..=n {
             for j in 0..=n - i {
                 let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                points.push(Point3::from(
+                out.points.push(Point3::from(
                     a.coords * (1.0 - u - v) + b.coords * u + c.coords * v,
                 ));
-                areas.push(area / count as f64);
+                out.areas.push(area / count as f64);
+                // On the triangle's edges the surface may fold (a cube's rim).
+                let rim = i == 0 || j == 0 || i + j == n;
+                out.normals.push(if rim {
+                    nalgebra::Vector3::zeros()
+                } else {
+                    normal
+                });
             }
         }
     }
-    for (vertex, area) in thin_vertices(positions, &vertex_area, VERTEX_CLUSTER * spacing) {
-        points.push(positions[vertex]);
-        areas.push(area);
+    let side = VERTEX_CLUSTER * spacing;
+    for (vertex, area, normal) in thin_vertices(positions, (&vertex_area, &vertex_normal), side) {
+        out.points.push(positions[vertex]);
+        out.areas.push(area);
+        // Where the faces round the cluster turn by more than some 18° from their mean (a
+        // corner, a crease), it has no one normal.
+        let flat = normal.norm() >= FLAT_CLUSTER * area;
+        let normal = normal.try_normalize(1e-12).filter(|_| flat);
+        out.normals.push(normal.unwrap_or_default());
     }
-    (points, areas)
+    out
 }
 
 /// Samples of a sliver (a triangle narrower than a quarter of its longest edge: a bevel, a
@@ -142,8 +190,13 @@ fn sliver_samples(t: &[Point3<f64>; 3], area: f64, spacing: f64) -> Option<Vec<P
 }
 
 /// The vertices with an area, one per cube of side `side` (the one nearest the cube's
-/// area-weighted centre, with the cube's whole area), in order of first vertex.
-fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> Vec<(usize, f64)> {
+/// area-weighted centre, with the cube's whole area and the sum of its vertices' normal sums:
+/// a flat-shaded corner's split copies all count), in order of first vertex.
+fn thin_vertices(
+    positions: &[Point3<f64>],
+    (vertex_area, vertex_normal): (&[f64], &[nalgebra::Vector3<f64>]),
+    side: f64,
+) -> Vec<(usize, f64, nalgebra::Vector3<f64>)> {
     let key = |p: &Point3<f64>| {
         if side > 0.0 && side.is_finite() {
             p.coords
@@ -156,15 +209,18 @@ fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> V
     // vertex (kept where no distance compares, e.g. an overflowing sum).
     let mut cluster_of = std::collections::HashMap::new();
     let mut clusters: Vec<(f64, nalgebra::Vector3<f64>, usize)> = Vec::new();
+    let mut normals: Vec<nalgebra::Vector3<f64>> = Vec::new();
     let mut member = vec![usize::MAX; positions.len()];
     for (i, &area) in vertex_area.iter().enumerate() {
         if area > 0.0 && positions[i].coords.iter().all(|c| c.is_finite()) {
             let c = *cluster_of.entry(key(&positions[i])).or_insert_with(|| {
                 clusters.push((0.0, nalgebra::Vector3::zeros(), i));
+                normals.push(nalgebra::Vector3::zeros());
                 clusters.len() - 1
             });
             clusters[c].0 += area;
             clusters[c].1 += positions[i].coords * area;
+            normals[c] += vertex_normal[i];
             member[i] = c;
         }
     }
@@ -178,10 +234,8 @@ fn thin_vertices(positions: &[Point3<f64>], vertex_area: &[f64], side: f64) -> V
             }
         }
     }
-    nearest
-        .iter()
-        .zip(&clusters)
-        .map(|(&(_, vertex), &(area, _, _))| (vertex, area))
+    (nearest.iter().zip(&clusters).zip(normals))
+        .map(|((&(_, vertex), &(area, _, _)), normal)| (vertex, area, normal))
         .collect()
 }
 
@@ -216,6 +270,51 @@ mod tests {
             total > 12.0 && total < 4.0 * std::f64::consts::PI,
             "{total}"
         );
+    }
+
+    /// Each sample carries the surface's outward normal: a face's on a cube's big faces, the
+    /// mean of a corner's faces at its vertex, the sphere's radial one on a fine sphere.
+    #[test]
+    fn samples_carry_the_surface_normal() {
+        let (p, t) = box_mesh([0.0; 3], [1.0; 3]);
+        let s = surface_samples_with_normals(&p, &t, 0.1);
+        assert_eq!(s.normals.len(), s.points.len());
+        let centre = Point3::new(0.5, 0.5, 0.5);
+        let (mut inner, mut rims) = (0, 0);
+        for (q, n) in s.points.iter().zip(&s.normals) {
+            let inside = (q.coords.iter()).filter(|c| **c > 1e-9 && **c < 1.0 - 1e-9);
+            if inside.count() < 2 {
+                // On the cube's edges and corners: none.
+                assert_eq!(*n, nalgebra::Vector3::zeros(), "at {q}");
+                rims += 1;
+            } else if *n != nalgebra::Vector3::zeros() {
+                // In a face (but on the diagonal its two triangles meet on): the face's
+                // outward normal, one axis.
+                assert!((n.amax() - 1.0).abs() < 1e-9, "{n} at {q}");
+                assert!((q - centre).dot(n) > 0.0, "{n} at {q} points in");
+                inner += 1;
+            }
+        }
+        assert!(
+            inner > 2 * rims,
+            "{inner} samples inside faces, {rims} on edges"
+        );
+        let (sp, st) = uv_sphere([0.0; 3], 1.0, 32, 64);
+        let s = surface_samples_with_normals(&sp, &st, 0.5);
+        let known = s.normals.iter().filter(|n| n.norm() > 0.0).count();
+        assert!(
+            known * 10 > s.normals.len() * 9,
+            "{known} of {}",
+            s.normals.len()
+        );
+        for (q, n) in s
+            .points
+            .iter()
+            .zip(&s.normals)
+            .filter(|(_, n)| n.norm() > 0.0)
+        {
+            assert!(q.coords.normalize().dot(n) > 0.99, "{n} at {q}");
+        }
     }
 
     #[test]

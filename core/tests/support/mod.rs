@@ -6,7 +6,7 @@
 
 use springbake_core::lattice::fill::cell_fill;
 use springbake_core::lattice::{
-    fit_lattice, surface_samples, FitSettings, Lattice, Resolution, SpringLayout,
+    fit_lattice, surface_samples_with_normals, FitSettings, Lattice, Resolution, SpringLayout,
 };
 use springbake_core::material::Material;
 use springbake_core::nalgebra::{Point3, Vector3};
@@ -115,8 +115,8 @@ pub fn product_world(
             w.set_cell_fill(h, &fill);
         }
     }
-    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-    w.add_contact_surface(h, &m.lattice, &samples, &areas);
+    let s = surface_samples_with_normals(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+    w.add_contact_surface_with_normals(h, &m.lattice, &s.points, &s.areas, &s.normals);
     w
 }
 
@@ -209,8 +209,8 @@ pub fn rebound(w: &mut World, frames: usize) -> Rebound {
 #[allow(dead_code)]
 pub fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> BodyHandle {
     let h = w.add_lattice_body(name, &m.lattice, material, Vector3::zeros());
-    let (samples, areas) = surface_samples(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
-    w.add_contact_surface(h, &m.lattice, &samples, &areas);
+    let s = surface_samples_with_normals(&m.points, &m.triangles, 0.5 * m.lattice.cell_size);
+    w.add_contact_surface_with_normals(h, &m.lattice, &s.points, &s.areas, &s.normals);
     w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
     h
 }

@@ -212,6 +212,8 @@ pub struct BodyContact {
     /// (computed once a step for a body in any pair, not once per pair).
     sample_x: Vec<Vector3<f64>>,
     sample_v: Vec<Vector3<f64>>,
+    /// Its surface's unit normal then, zero where not known ([`SurfacePoints::normal_now`]).
+    sample_normal: Vec<Vector3<f64>>,
     sample_stamp: Vec<u64>,
     /// Scratch of [`prepare`]: per mesh, whether a search reads it in this step; per body,
     /// whether its samples are computed there.
@@ -289,6 +291,7 @@ impl BodyContact {
         self.sample_stamp[b] = self.step;
         for i in self.points[b].clone() {
             (self.sample_x[i], self.sample_v[i]) = sample(surface, nodes, i);
+            self.sample_normal[i] = surface.normal_now(i, &nodes.position).unwrap_or_default();
         }
     }
 
@@ -347,6 +350,7 @@ impl BodyContact {
         self.last_position.clear();
         self.sample_x = vec![Vector3::zeros(); surface.len()];
         self.sample_v = vec![Vector3::zeros(); surface.len()];
+        self.sample_normal = vec![Vector3::zeros(); surface.len()];
         self.sample_stamp = vec![0; bodies.len()];
         self.neighbours = Default::default();
         self.hertz_n2 = vec![None; bodies.len() * (bodies.len() + self.colliders.len())];

@@ -153,6 +153,22 @@ impl World {
         points: &[Point3<f64>],
         areas_m2: &[f64],
     ) {
+        self.add_contact_surface_with_normals(body, lattice, points, areas_m2, &[]);
+    }
+
+    /// [`World::add_contact_surface`] with the surface's unit normal at each point (at rest,
+    /// from [`crate::lattice::surface_samples_with_normals`]; missing ones count as unknown):
+    /// a point meeting another body's edge or corner takes its own surface's normal where the
+    /// direction to the edge would push sideways (a box sliding over a slab met the slab's
+    /// points ahead of its front edge and stopped).
+    pub fn add_contact_surface_with_normals(
+        &mut self,
+        body: BodyHandle,
+        lattice: &Lattice,
+        points: &[Point3<f64>],
+        areas_m2: &[f64],
+        normals: &[Vector3<f64>],
+    ) {
         let info = &self.bodies[body.0];
         let base = info.nodes.start as u32;
         let embedding = crate::lattice::Embedding::new(lattice, points);
@@ -169,6 +185,7 @@ impl World {
             surface.share.push(shares[i]);
             surface.body.push(body.0 as u32);
             surface.reach.push(3.0 * 3f64.sqrt() * lattice.cell_size);
+            (surface.rest_normal).push(normals.get(i).copied().unwrap_or_default());
             surface.body_mass.push(if total_share > 0.0 {
                 body_mass * shares[i] / total_share
             } else {

@@ -22,6 +22,11 @@ pub struct SurfacePoints {
     /// How far a point can be from its cell's first corner, m (three cell diagonals: cells
     /// stretched by the bounded dispersion stay well inside).
     pub reach: Vec<f64>,
+    /// The display surface's unit normal at the point at rest, where it is known (a lattice
+    /// body's samples from [`crate::lattice::surface_samples_with_normals`]); zero elsewhere
+    /// (a cage's samples, or samples given without). [`SurfacePoints::normal_now`] turns it
+    /// with the point's cell.
+    pub rest_normal: Vec<Vector3<f64>>,
 }
 
 impl SurfacePoints {
@@ -81,5 +86,24 @@ impl SurfacePoints {
     }
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()
+    }
+
+    /// Point `i`'s surface normal for node positions `x`: its rest normal turned and sheared
+    /// with its cell, by the cofactor of the cell's mean edge vectors (a lattice at rest is
+    /// axis-aligned, its corners in [`crate::lattice::CORNERS`] order). `None` where the rest
+    /// normal is not known or the cell is crushed flat.
+    pub(crate) fn normal_now(&self, i: usize, x: &[Vector3<f64>]) -> Option<Vector3<f64>> {
+        let rest = *self.rest_normal.get(i)?;
+        if rest == Vector3::zeros() {
+            return None;
+        }
+        let c = self.nodes[i].map(|n| x[n as usize]);
+        let along_x = (c[1] - c[0]) + (c[3] - c[2]) + (c[5] - c[4]) + (c[7] - c[6]);
+        let along_y = (c[2] - c[0]) + (c[3] - c[1]) + (c[6] - c[4]) + (c[7] - c[5]);
+        let along_z = (c[4] - c[0]) + (c[5] - c[1]) + (c[6] - c[2]) + (c[7] - c[3]);
+        let turned = along_y.cross(&along_z) * rest.x
+            + along_z.cross(&along_x) * rest.y
+            + along_x.cross(&along_y) * rest.z;
+        turned.try_normalize(1e-12)
     }
 }
