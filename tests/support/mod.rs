@@ -142,6 +142,19 @@ pub fn pc2_frames(bytes: &[u8]) -> Vec<Vec<[f32; 3]>> {
         .collect()
 }
 
+/// A box from `lo` to `hi` as an OBJ object `name` (12 triangles).
+pub fn box_obj(name: &str, lo: [f64; 3], hi: [f64; 3]) -> String {
+    let (points, triangles) = springbake_core::shapes::box_mesh(lo, hi);
+    let mut obj = format!("o {name}\n");
+    for p in &points {
+        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for [a, b, c] in triangles {
+        obj += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
+    }
+    obj
+}
+
 /// Five boxes side by side as one OBJ (objects `Part0`…`Part4`), each `step` from the last
 /// along x, `side` wide, their bottoms at `bottom`, in the file's units.
 pub fn row_of_boxes(step: f64, bottom: f64, side: f64) -> String {

@@ -26,6 +26,10 @@ pub const MAX_GRID_SAMPLES: usize = 1 << 20;
 /// corner 0.58, its edge 0.71).
 const FLAT_CLUSTER: f64 = 0.95;
 
+/// The least cosine between the normals of two triangles sharing an edge for the surface to
+/// be flat across it (18°): samples on a sharper edge carry no normal.
+const FLAT_EDGE: f64 = 0.95;
+
 /// Side of a vertex cluster, in sample spacings.
 pub const VERTEX_CLUSTER: f64 = 0.5;
 
@@ -73,8 +77,9 @@ pub struct SurfaceSamples {
     pub areas: Vec<f64>,
     /// The surface's unit normal at each, as the triangles are wound, where the surface is
     /// flat round it: an inner grid sample's triangle's, a vertex's the area-weighted mean of
-    /// the triangles round its cluster. Zero where it has none: a grid sample on its
-    /// triangle's edges, a sliver's samples, a cluster at a corner or a crease.
+    /// the triangles round its cluster. Zero where it has none: a grid sample on an edge
+    /// where the surface folds or ends or at its triangle's corner, a sliver's samples, a
+    /// cluster at a corner or a crease.
     pub normals: Vec<nalgebra::Vector3<f64>>,
 }
 
@@ -97,7 +102,8 @@ pub fn surface_samples_with_normals(
     // Per vertex, the area-weighted sum of the normals of the triangles round it.
     let mut vertex_normal = vec![nalgebra::Vector3::zeros(); positions.len()];
     let mut out = SurfaceSamples::default();
-    for t in triangles {
+    let rims = rim_edges(positions, triangles);
+    for (t, rim_edge) in triangles.iter().zip(&rims) {
         let [a, b, c] = t.map(|i| positions[i as usize]);
         let cross = (b - a).cross(&(c - a));
         let area = 0.5 * cross.norm();
@@ -133,8 +139,13 @@ pub fn surface_samples_with_normals(
                     a.coords * (1.0 - u - v) + b.coords * u + c.coords * v,
                 ));
                 out.areas.push(area / count as f64);
-                // On the triangle's edges the surface may fold (a cube's rim).
-                let rim = i == 0 || j == 0 || i + j == n;
+                // On an edge where the surface folds or ends (a cube's rim, not a quad's
+                // diagonal), or at a corner: no one normal.
+                let corner = (i == 0 || j == 0) && (i + j == 0 || i + j == n);
+                let rim = corner
+                    || (j == 0 && rim_edge[0])
+                    || (i + j == n && rim_edge[1])
+                    || (i == 0 && rim_edge[2]);
                 out.normals.push(if rim {
                     nalgebra::Vector3::zeros()
                 } else {
@@ -154,6 +165,48 @@ pub fn surface_samples_with_normals(
         out.normals.push(normal.unwrap_or_default());
     }
     out
+}
+
+/// Per triangle, whether each of its edges (corners 0–1, 1–2, 2–0) is a rim of the surface:
+/// not shared with exactly one other triangle (by position: glTF splits vertices along seams)
+/// whose normal is within [`FLAT_EDGE`] of its own.
+fn rim_edges(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<[bool; 3]> {
+    type Key = [u64; 3];
+    let key = |i: u32| positions[i as usize].coords.map(f64::to_bits).into();
+    let edge = |t: &[u32; 3], e: usize| {
+        let (p, q): (Key, Key) = (key(t[e]), key(t[(e + 1) % 3]));
+        if p <= q {
+            (p, q)
+        } else {
+            (q, p)
+        }
+    };
+    let normal = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        (b - a).cross(&(c - a)).try_normalize(0.0)
+    };
+    let normals: Vec<_> = triangles.iter().map(normal).collect();
+    let mut sharing: std::collections::HashMap<(Key, Key), Vec<usize>> = Default::default();
+    for (k, t) in triangles.iter().enumerate() {
+        for e in 0..3 {
+            sharing.entry(edge(t, e)).or_default().push(k);
+        }
+    }
+    (triangles.iter().enumerate())
+        .map(|(k, t)| {
+            [0, 1, 2].map(|e| {
+                let others = &sharing[&edge(t, e)];
+                let flat = |(m, n): (nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)| {
+                    m.dot(&n) >= FLAT_EDGE
+                };
+                let other = others.iter().find(|&&o| o != k).copied();
+                !(others.len() == 2
+                    && other
+                        .and_then(|o| normals[k].zip(normals[o]))
+                        .is_some_and(flat))
+            })
+        })
+        .collect()
 }
 
 /// Samples of a sliver (a triangle narrower than a quarter of its longest edge: a bevel, a
@@ -287,8 +340,8 @@ mod tests {
                 // On the cube's edges and corners: none.
                 assert_eq!(*n, nalgebra::Vector3::zeros(), "at {q}");
                 rims += 1;
-            } else if *n != nalgebra::Vector3::zeros() {
-                // In a face (but on the diagonal its two triangles meet on): the face's
+            } else {
+                // In a face, on the diagonal its two triangles meet on too: the face's
                 // outward normal, one axis.
                 assert!((n.amax() - 1.0).abs() < 1e-9, "{n} at {q}");
                 assert!((q - centre).dot(n) > 0.0, "{n} at {q} points in");
