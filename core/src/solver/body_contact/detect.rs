@@ -525,10 +525,12 @@ pub(super) fn grid_needed(search: &PairSearch) -> Option<usize> {
 }
 
 /// Build the prepared search's list if it is to be built, then its vertex–face contacts in
-/// its samples' order into `out`. Reads the contact state only (pairs run side by side).
+/// its samples' order into `out`. Reads the contact state only (pairs run side by side), and
+/// `points`: the surface points and the node positions (a sample meeting a rim reads its own
+/// surface's normal from its cell, [`SurfacePoints::normal_now`]).
 pub(super) fn search_pair(
     bc: &BodyContact,
-    surface: &SurfacePoints,
+    points: (&SurfacePoints, &[Vector3<f64>]),
     search: &mut PairSearch,
     out: &mut Vec<Contact>,
 ) {
@@ -540,7 +542,7 @@ pub(super) fn search_pair(
         samples,
     );
     // Ranked lists never read the bounds scratch: it stays empty, unallocated.
-    pair_contacts(bc, surface, search, &mut Vec::new(), out);
+    pair_contacts(bc, points, search, &mut Vec::new(), out);
 }
 
 /// The vertex–face contacts of a prepared search, in its samples' order, into `out`
@@ -564,7 +566,7 @@ pub(super) fn search_pair(
 /// alone. The same contacts come out, so the same bits.
 pub(super) fn pair_contacts(
     bc: &BodyContact,
-    surface: &SurfacePoints,
+    (surface, positions): (&SurfacePoints, &[Vector3<f64>]),
     search: &mut PairSearch,
     bounds: &mut Vec<Bound>,
     out: &mut Vec<Contact>,
@@ -614,7 +616,8 @@ pub(super) fn pair_contacts(
         list.outside_by[k] = hit.as_ref().map_or(0.0, |hit| hit.outside_by);
         if let Some(hit) = hit {
             let normal = if hit.rim {
-                rim_normal(hit.normal, bc.sample_normal[i], search.own_open)
+                let own = surface.normal_now(i, positions).unwrap_or_default();
+                rim_normal(hit.normal, own, search.own_open)
             } else {
                 hit.normal
             };

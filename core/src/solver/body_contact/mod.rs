@@ -212,8 +212,6 @@ pub struct BodyContact {
     /// (computed once a step for a body in any pair, not once per pair).
     sample_x: Vec<Vector3<f64>>,
     sample_v: Vec<Vector3<f64>>,
-    /// Its surface's unit normal then, zero where not known ([`SurfacePoints::normal_now`]).
-    sample_normal: Vec<Vector3<f64>>,
     sample_stamp: Vec<u64>,
     /// Scratch of [`prepare`]: per mesh, whether a search reads it in this step; per body,
     /// whether its samples are computed there.
@@ -291,7 +289,6 @@ impl BodyContact {
         self.sample_stamp[b] = self.step;
         for i in self.points[b].clone() {
             (self.sample_x[i], self.sample_v[i]) = sample(surface, nodes, i);
-            self.sample_normal[i] = surface.normal_now(i, &nodes.position).unwrap_or_default();
         }
     }
 
@@ -350,7 +347,6 @@ impl BodyContact {
         self.last_position.clear();
         self.sample_x = vec![Vector3::zeros(); surface.len()];
         self.sample_v = vec![Vector3::zeros(); surface.len()];
-        self.sample_normal = vec![Vector3::zeros(); surface.len()];
         self.sample_stamp = vec![0; bodies.len()];
         self.neighbours = Default::default();
         self.hertz_n2 = vec![None; bodies.len() * (bodies.len() + self.colliders.len())];
@@ -520,7 +516,8 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     let mut searches = begin_searches(bc, input);
     let mut edge_scratch = std::mem::take(&mut bc.edge_scratch);
     edge_scratch.resize_with(searches.len(), Default::default);
-    search_pairs(bc, input.surface, &mut searches, &mut edge_scratch);
+    let samples = (input.surface, &input.nodes.position[..]);
+    search_pairs(bc, samples, &mut searches, &mut edge_scratch);
     bc.edge_scratch = edge_scratch;
     // Hertz's episodes end for the pairs out of reach (the others' end in `respond`).
     if bc.model == ContactModel::Hertz {
@@ -686,7 +683,7 @@ fn grids_for_lists(bc: &mut BodyContact, pairs: &[PairSearches]) {
 /// makes the stencils of those that may.
 fn search_pairs(
     bc: &BodyContact,
-    surface: &SurfacePoints,
+    (surface, positions): (&SurfacePoints, &[Vector3<f64>]),
     pairs: &mut [PairSearches],
     scratch: &mut [EdgeScratch],
 ) {
@@ -695,7 +692,7 @@ fn search_pairs(
         let pair = &mut pair[0];
         pair.found.clear();
         for search in pair.searches.iter_mut().flatten() {
-            detect::search_pair(bc, surface, search, &mut pair.found);
+            detect::search_pair(bc, (surface, positions), search, &mut pair.found);
         }
         let (ab, region) = ((pair.a, pair.b), (pair.lo, pair.hi));
         detect_edges(bc, ab, region, pair.h, &mut scratch[0], &mut pair.found);

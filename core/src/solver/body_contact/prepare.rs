@@ -55,15 +55,13 @@ pub(super) fn surfaces_in_reach(bc: &mut BodyContact, input: &PassInput, pairs: 
     let parts = (
         Chunks::new(&mut bc.sample_x, SAMPLE_CHUNK),
         Chunks::new(&mut bc.sample_v, SAMPLE_CHUNK),
-        Chunks::new(&mut bc.sample_normal, SAMPLE_CHUNK),
     );
-    team::for_each(parts, |chunk, (xs, vs, normals)| {
+    team::for_each(parts, |chunk, (xs, vs)| {
         let start = chunk * SAMPLE_CHUNK;
-        for (k, ((x, v), normal)) in xs.iter_mut().zip(vs).zip(normals).enumerate() {
+        for (k, (x, v)) in xs.iter_mut().zip(vs).enumerate() {
             let i = start + k;
             if sampled.get(surface.body[i] as usize) == Some(&true) {
                 (*x, *v) = sample(surface, nodes, i);
-                *normal = surface.normal_now(i, &nodes.position).unwrap_or_default();
             }
         }
     });
