@@ -325,8 +325,9 @@ mod tests {
         );
     }
 
-    /// Each sample carries the surface's outward normal: a face's on a cube's big faces, the
-    /// mean of a corner's faces at its vertex, the sphere's radial one on a fine sphere.
+    /// Each sample carries the surface's outward normal where it is flat: a face's on a cube's
+    /// faces (its diagonal too), none on its edges and corners, the radial one on a fine
+    /// sphere (at its vertices).
     #[test]
     fn samples_carry_the_surface_normal() {
         let (p, t) = box_mesh([0.0; 3], [1.0; 3]);

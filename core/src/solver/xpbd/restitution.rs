@@ -394,7 +394,7 @@ struct Impact<'a> {
 /// the projection left approaching), and it had none: a steel box thrown at 2 m/s onto the
 /// floor from 30 cm hopped on at 2 m/s for a second and came to rest 3.9 m away (1.2 m now),
 /// and a wooden box landing from 2 mm on a 30° ramp slid 13 % farther in the next second
-/// than Coulomb's law lets it (7 % now, most of it the bounces').
+/// than Coulomb's law lets it (7 % now; 3 % with no bounce at all).
 fn coulomb(rigid: &mut RigidMotion, contacts: &[(V3, V3)], normal: &[f64], friction: f64) {
     /// Passes over the contact points.
     const PASSES: usize = 4;
