@@ -182,6 +182,12 @@ pub(super) fn friction(slip: V3, limit: f64) -> V3 {
     }
 }
 
+/// Indices `0..n`, forwards on even passes and backwards on odd ones: sequential impulses
+/// over a body's contacts in this order leave no contact always first.
+pub(super) fn alternating(n: usize, pass: usize) -> impl Iterator<Item = usize> {
+    (0..n).map(move |k| if pass.is_multiple_of(2) { k } else { n - 1 - k })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -24,7 +24,7 @@
 //! V-shaped groove meets the other wall from behind), and its push, taken by the whole body,
 //! threw a wooden box a metre along the groove; the face on the near side holds the point.
 
-use super::contact::tangential;
+use super::contact::{alternating, friction, tangential};
 use super::frames::RigidFrame;
 use super::V3;
 
@@ -120,20 +120,11 @@ pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FrameContact]) {
             if along <= 0.0 {
                 continue;
             }
-            let mut total = c.friction_impulse - slip / along;
-            let limit = c.friction * c.impulse;
-            if total.norm() > limit {
-                total *= limit / total.norm();
-            }
+            let total = friction(c.friction_impulse - slip / along, c.friction * c.impulse);
             frame.push(p, total - c.friction_impulse);
             c.friction_impulse = total;
         }
     }
-}
-
-/// Indices `0..n`, forwards on even passes and backwards on odd ones.
-fn alternating(n: usize, pass: usize) -> impl Iterator<Item = usize> {
-    (0..n).map(move |k| if pass.is_multiple_of(2) { k } else { n - 1 - k })
 }
 
 /// Per frame, one push at the centre of its contact points along their mean normal that

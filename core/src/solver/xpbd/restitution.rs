@@ -15,6 +15,7 @@
 use super::super::contact::Plane;
 use super::super::deformation_damping::{rigid_motion_in, RigidMotion, RigidScratch};
 use super::super::World;
+use super::contact::{alternating, friction};
 use nalgebra::Vector3;
 
 type V3 = Vector3<f64>;
@@ -388,21 +389,19 @@ struct Impact<'a> {
 
 /// Coulomb friction with a bounce's normal impulses (`normal[k]` at `contacts[k]`): at each
 /// point, an impulse against its slip on the surface that stops the slip, bounded by
-/// `friction` times the point's normal impulse; sequential impulses, accumulated per point,
+/// `mu` (the friction coefficient) times the point's normal impulse; sequential impulses, accumulated per point,
 /// a few passes in alternating order. The contact projection stops the approach with its
 /// friction, but the bounce's impulse is the larger part of the impact's (it also stops what
 /// the projection left approaching), and it had none: a steel box thrown at 2 m/s onto the
 /// floor from 30 cm hopped on at 2 m/s for a second and came to rest 3.9 m away (1.2 m now),
 /// and a wooden box landing from 2 mm on a 30° ramp slid 13 % farther in the next second
 /// than Coulomb's law lets it (7 % now; 3 % with no bounce at all).
-fn coulomb(rigid: &mut RigidMotion, contacts: &[(V3, V3)], normal: &[f64], friction: f64) {
+fn coulomb(rigid: &mut RigidMotion, contacts: &[(V3, V3)], normal: &[f64], mu: f64) {
     /// Passes over the contact points.
     const PASSES: usize = 4;
     let mut totals = vec![V3::zeros(); contacts.len()];
-    let count = contacts.len();
     for pass in 0..PASSES {
-        for k in 0..count {
-            let k = if pass % 2 == 1 { count - 1 - k } else { k };
+        for k in alternating(contacts.len(), pass) {
             let (p, n) = contacts[k];
             let v = rigid.velocity_at(&p);
             let slip = v - n * v.dot(&n);
@@ -411,11 +410,8 @@ fn coulomb(rigid: &mut RigidMotion, contacts: &[(V3, V3)], normal: &[f64], frict
                 continue;
             }
             let t = slip / speed;
-            let mut total = totals[k] - t * (speed / inverse_mass_along(rigid, p, t));
-            let limit = friction * normal[k];
-            if total.norm() > limit {
-                total *= limit / total.norm();
-            }
+            let stop = totals[k] - t * (speed / inverse_mass_along(rigid, p, t));
+            let total = friction(stop, mu * normal[k]);
             nudge(rigid, p, total - totals[k]);
             totals[k] = total;
         }
@@ -444,14 +440,9 @@ impl SequentialImpulses {
         totals: &mut [f64],
         point: impl Fn(usize) -> (V3, V3, f64),
     ) {
-        let count = totals.len();
         for pass in 0..self.passes {
-            for k in 0..count {
-                let k = if self.alternate && pass % 2 == 1 {
-                    count - 1 - k
-                } else {
-                    k
-                };
+            // One order throughout (pass 0's) unless alternating.
+            for k in alternating(totals.len(), if self.alternate { pass } else { 0 }) {
                 let (p, n, goal) = point(k);
                 let now = (rigid.velocity_at(&p) + self.bias).dot(&n);
                 let push = self.weight * (goal - now) / inverse_mass_along(rigid, p, n);
