@@ -171,22 +171,18 @@ pub fn surface_samples_with_normals(
 /// not shared with exactly one other triangle (by position: glTF splits vertices along seams)
 /// whose normal is within [`FLAT_EDGE`] of its own.
 fn rim_edges(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<[bool; 3]> {
-    type Key = [u64; 3];
-    let key = |i: u32| positions[i as usize].coords.map(f64::to_bits).into();
+    let welded = crate::collide::geometry::weld_positions(positions.iter().map(|p| p.coords));
     let edge = |t: &[u32; 3], e: usize| {
-        let (p, q): (Key, Key) = (key(t[e]), key(t[(e + 1) % 3]));
-        if p <= q {
-            (p, q)
-        } else {
-            (q, p)
-        }
+        let (p, q) = (welded[t[e] as usize], welded[t[(e + 1) % 3] as usize]);
+        (p.min(q), p.max(q))
     };
-    let normal = |t: &[u32; 3]| {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        (b - a).cross(&(c - a)).try_normalize(0.0)
-    };
-    let normals: Vec<_> = triangles.iter().map(normal).collect();
-    let mut sharing: std::collections::HashMap<(Key, Key), Vec<usize>> = Default::default();
+    let normals: Vec<_> = (triangles.iter())
+        .map(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            (b - a).cross(&(c - a)).try_normalize(0.0)
+        })
+        .collect();
+    let mut sharing: std::collections::HashMap<(u32, u32), Vec<usize>> = Default::default();
     for (k, t) in triangles.iter().enumerate() {
         for e in 0..3 {
             sharing.entry(edge(t, e)).or_default().push(k);
@@ -194,16 +190,13 @@ fn rim_edges(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<[bool; 3]
     }
     (triangles.iter().enumerate())
         .map(|(k, t)| {
-            [0, 1, 2].map(|e| {
-                let others = &sharing[&edge(t, e)];
-                let flat = |(m, n): (nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)| {
-                    m.dot(&n) >= FLAT_EDGE
-                };
-                let other = others.iter().find(|&&o| o != k).copied();
-                !(others.len() == 2
-                    && other
-                        .and_then(|o| normals[k].zip(normals[o]))
-                        .is_some_and(flat))
+            [0, 1, 2].map(|e| match sharing[&edge(t, e)][..] {
+                [a, b] => {
+                    let other = if a == k { b } else { a };
+                    let faces = normals[k].zip(normals[other]);
+                    !faces.is_some_and(|(m, n)| m.dot(&n) >= FLAT_EDGE)
+                }
+                _ => true,
             })
         })
         .collect()
