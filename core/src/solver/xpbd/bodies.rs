@@ -26,8 +26,11 @@
 //! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
 
 use super::contact::{friction, tangential};
+use super::frame_pairs::{self, FramePairContact, Side};
 use super::frames::{apply_frames, RigidFrame};
 use crate::solver::body_contact::BodyConstraint;
+use crate::solver::contact::Plane;
+use crate::solver::world::SurfacePoints;
 use nalgebra::Vector3;
 
 type V3 = Vector3<f64>;
@@ -61,6 +64,9 @@ pub(crate) struct BodyContacts<'a> {
     /// How far a contact closer than the gap at the substep's start, or a separating one,
     /// may open in one substep beyond where it started, m.
     pub opening: f64,
+    /// The display-surface points and the planes (floor, walls): the frames in contact with
+    /// each other meet the planes in the same passes ([`frame_pairs`]), with `friction`.
+    pub planes: Option<(&'a SurfacePoints, &'a [Plane])>,
 }
 
 /// What the constraints did.
@@ -88,6 +94,18 @@ impl BodyContacts<'_> {
         let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
         // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
         let mut frame_rest = vec![V3::zeros(); frames.len()];
+        let mut pairs = self.frame_pairs(x, frames, frame_of, (&mut out, &mut frame_rest));
+        if let Some((surface, planes)) = self.planes.filter(|_| !pairs.is_empty()) {
+            let mut touching = vec![false; frames.len()];
+            for s in pairs.iter().flat_map(|c| &c.sides) {
+                touching[s.frame as usize] = true;
+            }
+            let state = (&x[..], self.previous);
+            let frames_of = (frame_of, &touching[..]);
+            let planes = (surface, planes, self.friction);
+            frame_pairs::plane_contacts(planes, state, frames_of, self.gap, &mut pairs);
+        }
+        frame_pairs::solve(frames, &mut pairs, self.reverse);
         let forward = (!self.reverse).then(|| self.constraints.iter());
         let backward = self.reverse.then(|| self.constraints.iter().rev());
         for c in forward
@@ -114,6 +132,9 @@ impl BodyContacts<'_> {
                 sides[slot].0 = f;
                 sides[slot].1 += s;
                 sides[slot].2 += xk * s;
+            }
+            if all_frames(stencil, &frame) && sides[1].0 != NO_FRAME {
+                continue; // solved with the other frame pairs
             }
             let mut points = [V3::zeros(); 2];
             for (side, point) in sides.iter().zip(&mut points) {
@@ -188,6 +209,104 @@ impl BodyContacts<'_> {
         }
         out
     }
+}
+
+impl BodyContacts<'_> {
+    /// The constraints between two frames, every node of theirs moved by one
+    /// ([`frame_pairs`]), at `x` before any frame has moved, with the gaps they keep. Marks
+    /// `out` touched by those closer than the gap, and leaves what separating ones cannot
+    /// open this substep in `frame_rest`.
+    fn frame_pairs(
+        &self,
+        x: &[V3],
+        frames: &[RigidFrame],
+        frame_of: &[u32],
+        (out, frame_rest): (&mut Touch, &mut [V3]),
+    ) -> Vec<FramePairContact> {
+        let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
+        let mut pairs = Vec::new();
+        if frames.len() < 2 {
+            return pairs;
+        }
+        for c in self.constraints {
+            let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
+            if !all_frames(stencil, &frame) {
+                continue;
+            }
+            let mut sides = [Side {
+                frame: NO_FRAME,
+                weight: 0.0,
+                point: V3::zeros(),
+            }; 2];
+            let (mut d, mut d_prev) = (V3::zeros(), V3::zeros());
+            for &(node, s) in stencil {
+                let k = node as usize;
+                let f = frame(k);
+                let slot = usize::from(sides[0].frame != NO_FRAME && sides[0].frame != f);
+                sides[slot].frame = f;
+                sides[slot].weight += s;
+                sides[slot].point += x[k] * s;
+                d += x[k] * s;
+                d_prev += self.previous[k] * s;
+            }
+            if sides[1].frame == NO_FRAME || sides.iter().any(|s| s.weight == 0.0) {
+                continue;
+            }
+            for side in &mut sides {
+                side.point /= side.weight;
+            }
+            let gap = c.normal.dot(&d);
+            if gap.is_nan() {
+                continue;
+            }
+            let start = c.normal.dot(&d_prev);
+            let target = self.gap.min(start + self.opening);
+            let contact = FramePairContact::new(sides, (c.normal, d_prev), target, self.friction);
+            if gap < self.gap {
+                out.touched = true;
+                out.depth = out.depth.max(-gap);
+                let separating = self.separating.is_some_and(|overlapping| {
+                    stencil.iter().any(|&(k, _)| overlapping[k as usize])
+                });
+                if separating {
+                    self.leave_to_rest(&contact, gap, frames, (out, frame_rest));
+                }
+            }
+            pairs.push(contact);
+        }
+        pairs
+    }
+
+    /// What separating frame-pair `contact`, at separation `gap` along its normal, cannot
+    /// open this substep, left to each side's frame in `frame_rest` ([`keep_apart`]).
+    fn leave_to_rest(
+        &self,
+        contact: &FramePairContact,
+        gap: f64,
+        frames: &[RigidFrame],
+        (out, frame_rest): (&mut Touch, &mut [V3]),
+    ) {
+        let n = contact.normal;
+        let inverse_mass: f64 = (contact.sides.iter())
+            .map(|s| s.weight * s.weight * frames[s.frame as usize].inverse_mass_at(s.point, n))
+            .sum();
+        // Where this substep leaves it: its target, or where it is if that is farther.
+        let opened = contact.target.max(gap);
+        if inverse_mass <= 0.0 || opened >= self.gap {
+            return;
+        }
+        out.rested = true;
+        let apart = n * ((self.gap - opened) / inverse_mass);
+        for s in &contact.sides {
+            let w = frames[s.frame as usize].inverse_mass_at(s.point, n);
+            keep_apart(&mut frame_rest[s.frame as usize], apart * (s.weight * w));
+        }
+    }
+}
+
+/// Whether every node of `stencil` moves with a frame.
+fn all_frames(stencil: &[(u32, f64)], frame: &impl Fn(usize) -> u32) -> bool {
+    stencil.iter().all(|&(k, _)| frame(k as usize) != NO_FRAME)
 }
 
 /// Grow a held or rigid body's move `by` (what its separating contacts leave to `rest`) so

@@ -31,6 +31,7 @@ mod cells;
 mod contact;
 mod crowding;
 mod frame_contacts;
+mod frame_pairs;
 mod frames;
 mod glue;
 mod held;
@@ -1027,6 +1028,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         separating: model.separated_by.map(|_| &model.overlapping[..]),
         opening: MAX_SEPARATION_SPEED * dt,
         reverse: false,
+        planes: Some((&world.surface, &world.settings.planes)),
     };
     model.contact_shifted = true;
     let mut frames = contact_frames(world, &model.held, &model.inv_mass, &mut model.frame_of);
