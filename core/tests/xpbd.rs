@@ -1156,15 +1156,17 @@ fn the_speed_cap_does_not_hold_a_body_about_to_hit_the_floor() {
     }
 }
 
-/// Five steel boxes (30 cm, held rigid) stacked a centimetre apart on the floor, each 2 cm
-/// further along x than the one below and every other one turned 0.25 rad about the
-/// vertical, settle and stand: the stack's weight lies well inside each box's support. Each
-/// contact moving the boxes in full before the next, the first ones tilted a box and the
-/// rest tilted it back a little differently each substep, and the floor, solved after the
-/// boxes, turned the bottom one back under the others: the stack walked sideways and fell
-/// within a second.
+/// Five steel boxes (30 cm, held rigid) stacked a centimetre apart on the floor or on a
+/// static collider, each 2 cm further along x than the one below and every other one turned
+/// 0.25 rad about the vertical, settle and stand: the stack's weight lies well inside each
+/// box's support. Each contact moving the boxes in full before the next, the first ones
+/// tilted a box and the rest tilted it back a little differently each substep, and the
+/// floor, solved after the boxes, turned the bottom one back under the others: the stack
+/// walked sideways and fell within a second. On the collider, the bottom box was pushed
+/// back up into the one above, which sank into it.
 #[test]
-fn a_crooked_stack_of_steel_boxes_stands() {
+fn a_crooked_stack_of_steel_boxes_stands_on_the_floor_and_on_a_collider() {
+    use springbake_core::collide::StaticCollider;
     let steel = Material::preset("steel").unwrap();
     let boxes: Vec<Mesh> = (0..5)
         .map(|i| {
@@ -1179,30 +1181,37 @@ fn a_crooked_stack_of_steel_boxes_stands() {
             mesh((points, triangles), 6)
         })
         .collect();
-    let mut w = world(&boxes[0], &steel, Vector3::zeros(), true);
-    let handles: Vec<BodyHandle> = std::iter::once(BodyHandle(0))
-        .chain(
-            boxes[1..]
-                .iter()
-                .enumerate()
-                .map(|(i, m)| add_part(&mut w, &format!("box{}", i + 1), m, &steel)),
-        )
-        .collect();
-    let centre = |w: &World, h: BodyHandle| {
-        let xs = w.body_positions(h);
-        xs.iter().sum::<Vector3<f64>>() / xs.len() as f64
-    };
-    let start: Vec<_> = handles.iter().map(|&h| centre(&w, h)).collect();
-    for f in 1..=36 {
-        frame(&mut w, f);
-    }
-    for (i, (&h, s)) in handles.iter().zip(&start).enumerate() {
-        let moved = centre(&w, h) - s;
-        // Each box falls the centimetre gaps below it, and no box slides.
-        let fell = 0.01 * i as f64;
-        assert!(
-            (moved.y + fell).abs() < 0.01 && moved.x.abs().max(moved.z.abs()) < 0.005,
-            "box {i} moved {moved:?}"
-        );
+    for on_floor in [true, false] {
+        let mut w = world(&boxes[0], &steel, Vector3::zeros(), on_floor);
+        if !on_floor {
+            let (points, triangles) = box_mesh([-1.0, -0.2, -1.0], [1.0, 0.0, 1.0]);
+            let table = StaticCollider::new("table", &points, &triangles, 0.4).unwrap();
+            w.add_collider(table);
+        }
+        let handles: Vec<BodyHandle> = std::iter::once(BodyHandle(0))
+            .chain(
+                boxes[1..]
+                    .iter()
+                    .enumerate()
+                    .map(|(i, m)| add_part(&mut w, &format!("box{}", i + 1), m, &steel)),
+            )
+            .collect();
+        let centre = |w: &World, h: BodyHandle| {
+            let xs = w.body_positions(h);
+            xs.iter().sum::<Vector3<f64>>() / xs.len() as f64
+        };
+        let start: Vec<_> = handles.iter().map(|&h| centre(&w, h)).collect();
+        for f in 1..=36 {
+            frame(&mut w, f);
+        }
+        for (i, (&h, s)) in handles.iter().zip(&start).enumerate() {
+            let moved = centre(&w, h) - s;
+            // Each box falls the centimetre gaps below it, and no box slides.
+            let fell = 0.01 * i as f64;
+            assert!(
+                (moved.y + fell).abs() < 0.01 && moved.x.abs().max(moved.z.abs()) < 0.005,
+                "on the floor: {on_floor}; box {i} moved {moved:?}"
+            );
+        }
     }
 }

@@ -26,8 +26,9 @@
 //! for [`super::shift_bodies`] to move the bodies apart as wholes, without speed.
 
 use super::contact::{friction, tangential};
-use super::frame_pairs::{self, FramePairContact, Side};
+use super::frame_pairs::{self, FramePairContact, Side, StaticContacts};
 use super::frames::{apply_frames, RigidFrame};
+use crate::collide::StaticCollider;
 use crate::solver::body_contact::BodyConstraint;
 use crate::solver::contact::Plane;
 use crate::solver::world::SurfacePoints;
@@ -64,9 +65,19 @@ pub(crate) struct BodyContacts<'a> {
     /// How far a contact closer than the gap at the substep's start, or a separating one,
     /// may open in one substep beyond where it started, m.
     pub opening: f64,
-    /// The display-surface points and the planes (floor, walls): the frames in contact with
-    /// each other meet the planes in the same passes ([`frame_pairs`]), with `friction`.
-    pub planes: Option<(&'a SurfacePoints, &'a [Plane])>,
+    /// The static geometry that the frames in contact with each other meet in the same
+    /// passes ([`frame_pairs::StaticContacts`]).
+    pub statics: Option<Statics<'a>>,
+}
+
+/// The display-surface points, the planes (floor, walls; with the contacts' `friction`), the
+/// static colliders, and per point the collider face it rests on (`Model::collider_side`).
+#[derive(Clone, Copy)]
+pub(crate) struct Statics<'a> {
+    pub surface: &'a SurfacePoints,
+    pub planes: &'a [Plane],
+    pub colliders: &'a [StaticCollider],
+    pub resting: &'a [Option<(u32, V3, V3)>],
 }
 
 /// What the constraints did.
@@ -95,15 +106,28 @@ impl BodyContacts<'_> {
         // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
         let mut frame_rest = vec![V3::zeros(); frames.len()];
         let mut pairs = self.frame_pairs(x, frames, frame_of, (&mut out, &mut frame_rest));
-        if let Some((surface, planes)) = self.planes.filter(|_| !pairs.is_empty()) {
+        if let Some(Statics {
+            surface,
+            planes,
+            colliders,
+            resting,
+        }) = self.statics.filter(|_| !pairs.is_empty())
+        {
             let mut touching = vec![false; frames.len()];
             for s in pairs.iter().flat_map(|c| &c.sides) {
                 touching[s.frame as usize] = true;
             }
-            let state = (&x[..], self.previous);
-            let frames_of = (frame_of, &touching[..]);
-            let planes = (surface, planes, self.friction);
-            frame_pairs::plane_contacts(planes, state, frames_of, self.gap, &mut pairs);
+            let statics = StaticContacts {
+                surface,
+                x,
+                previous: self.previous,
+                frame_of,
+                touching: &touching,
+                margin: self.gap,
+            };
+            statics.planes(planes, self.friction, &mut pairs);
+            let friction = |c: u32| colliders.get(c as usize).map_or(0.0, |c| c.friction);
+            statics.faces(resting, friction, &mut pairs);
         }
         frame_pairs::solve(frames, &mut pairs, self.reverse);
         let forward = (!self.reverse).then(|| self.constraints.iter());

@@ -33,8 +33,8 @@ const NORMAL_PASSES: usize = 12;
 /// A normal pass that moves no contact by more than this, m, ends them (serial: the same
 /// passes on any thread count).
 const CONVERGED: f64 = 1e-7;
-/// Sweeps of one push per pair of frames at its contacts' centre, before the passes.
-const CENTRE_SWEEPS: usize = 4;
+/// Most sweeps of one push per pair of frames at its contacts' centre, before the passes.
+const CENTRE_SWEEPS: usize = 32;
 /// How closely a pair's contact normals must agree (their mean's length, 1 when parallel)
 /// for its push at their centre ([`super::frame_contacts`] has the same).
 const NORMALS_AGREE: f64 = 0.95;
@@ -129,10 +129,7 @@ impl FramePairContact {
 /// (module docs). The frames' motion is applied to their nodes afterwards.
 pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FramePairContact], reverse: bool) {
     let first = usize::from(reverse);
-    let pairs = Pairs::of(contacts);
-    for sweep in first..first + CENTRE_SWEEPS {
-        push_at_centres(frames, contacts, &pairs, sweep);
-    }
+    push_at_centres(frames, contacts, first);
     // Each contact's inverse mass along its normal where the passes start (the frames turn
     // by a few microradians in a substep).
     let along_normal: Vec<f64> = (contacts.iter())
@@ -179,150 +176,231 @@ pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FramePairContact]
     }
 }
 
-/// The contacts of one pair of frames (or of a frame and the planes), as a range of
-/// [`Pairs::order`].
+/// The contacts of one pair of frames (or of a frame and static geometry) that are closer
+/// than their targets when the passes start, summed so that a push at their centre is one
+/// step however many they are: the frames move their points affinely, so the contacts'
+/// summed shortfall follows from the frames' motion alone (each side's weights sum to ±1).
 struct Pair {
+    /// The frames (the second may be [`NO_FRAME`]).
     frames: [u32; 2],
-    contacts: std::ops::Range<usize>,
+    /// The short contacts (indices into the contacts).
+    members: Vec<usize>,
+    /// Their summed normals `m`, oriented from the second side to the first.
+    normal: V3,
+    /// Their summed shortfalls when the passes start, m.
+    short: f64,
+    /// Per side, its points' mean, and `Σ (p − c) × m` about its frame's centre.
+    mean: [V3; 2],
+    turn: [V3; 2],
+    /// The pushes so far, kg·m.
+    impulse: f64,
 }
 
-/// The contacts grouped by pair, each group in the contacts' order, the groups in order of
-/// their first contact.
-struct Pairs {
-    pairs: Vec<Pair>,
-    order: Vec<usize>,
-}
-
-impl Pairs {
-    fn of(contacts: &[FramePairContact]) -> Pairs {
-        let mut index = rustc_hash::FxHashMap::default();
-        let mut members: Vec<Vec<usize>> = Vec::new();
-        let mut keys = Vec::new();
-        for (k, c) in contacts.iter().enumerate() {
-            let key = [c.sides[0].frame, c.sides[1].frame];
-            let slot = *index.entry(key).or_insert_with(|| {
-                keys.push(key);
-                members.push(Vec::new());
-                members.len() - 1
-            });
-            members[slot].push(k);
+impl Pair {
+    /// The summed shortfall with the frames' motion so far.
+    fn short_now(&self, frames: &[RigidFrame]) -> f64 {
+        let mut moved = 0.0;
+        for (side, (&f, sign)) in self.frames.iter().zip([1.0, -1.0]).enumerate() {
+            if let Some(frame) = frames.get(f as usize) {
+                let by = self.normal.dot(&frame.translation) + frame.rotation.dot(&self.turn[side]);
+                moved += sign * by;
+            }
         }
-        let mut order = Vec::with_capacity(contacts.len());
-        let mut pairs = Vec::with_capacity(keys.len());
-        for (frames, list) in keys.into_iter().zip(members) {
-            let start = order.len();
-            order.extend(list);
+        self.short - moved
+    }
+}
+
+/// The short contacts of `contacts` grouped by pair, the groups in order of their first
+/// contact, with their sums (the frames have not moved yet).
+fn short_pairs(frames: &[RigidFrame], contacts: &[FramePairContact]) -> Vec<Pair> {
+    let mut index = rustc_hash::FxHashMap::default();
+    let mut pairs: Vec<Pair> = Vec::new();
+    for (k, c) in contacts.iter().enumerate() {
+        let short = c.target - c.normal.dot(&c.separation(frames));
+        if short <= 0.0 {
+            continue;
+        }
+        let key = [c.sides[0].frame, c.sides[1].frame];
+        let slot = *index.entry(key).or_insert_with(|| {
             pairs.push(Pair {
-                frames,
-                contacts: start..order.len(),
+                frames: key,
+                members: Vec::new(),
+                normal: V3::zeros(),
+                short: 0.0,
+                mean: [V3::zeros(); 2],
+                turn: [V3::zeros(); 2],
+                impulse: 0.0,
             });
+            pairs.len() - 1
+        });
+        let pair = &mut pairs[slot];
+        let m = c.normal * c.sides[0].weight.signum();
+        pair.members.push(k);
+        pair.normal += m;
+        pair.short += short;
+        for (side, s) in c.sides.iter().enumerate() {
+            pair.mean[side] += s.point;
+            if let Some(frame) = frames.get(s.frame as usize) {
+                pair.turn[side] += (s.point - frame.centre).cross(&m);
+            }
         }
-        Pairs { pairs, order }
     }
+    for pair in &mut pairs {
+        let count = pair.members.len() as f64;
+        pair.mean = pair.mean.map(|p| p / count);
+    }
+    pairs
 }
 
-/// One sweep over the pairs of frames (in alternating order by `sweep`): per pair, one push
-/// at the centre of its contacts closer than their targets, along their mean normal, that
-/// brings their mean shortfall to zero, shared among those contacts as impulse (each keeps
-/// pushing, never pulling). A box resting flat on another is then lifted level, as a whole:
-/// contact by contact, the first ones tilted it and the rest tilted it back, a little
+/// Pushes at the pairs' centres (module docs): sweeps over the pairs, in alternating order,
+/// each pushing its frames apart at the mean of its short contacts' points, along their mean
+/// normal, by what brings their mean shortfall to zero (never pulling in all), until a sweep
+/// moves no pair by more than [`CONVERGED`]; then each pair's impulse is shared among its
+/// contacts as their first impulses. A box resting flat on another is lifted level, as a
+/// whole, and a stack's weight reaches its bottom box and the floor in these sweeps:
+/// contact by contact, the first ones tilted a box and the rest tilted it back, a little
 /// differently each substep.
-fn push_at_centres(
-    frames: &mut [RigidFrame],
-    contacts: &mut [FramePairContact],
-    pairs: &Pairs,
-    sweep: usize,
-) {
-    for p in alternating(pairs.pairs.len(), sweep) {
-        let pair = &pairs.pairs[p];
-        let members = &pairs.order[pair.contacts.clone()];
-        // The short contacts' summed points, normals (oriented from the second frame to the
-        // first) and shortfalls.
-        let (mut points, mut normals, mut shortfalls, mut count) =
-            (V3::zeros(), V3::zeros(), 0.0, 0);
-        for &k in members {
-            let c = &contacts[k];
-            let short = c.target - c.normal.dot(&c.separation(frames));
-            if short > 0.0 {
-                points += c.sides[0].now(frames);
-                normals += c.normal * c.sides[0].weight.signum();
-                shortfalls += short;
-                count += 1;
-            }
-        }
-        if count == 0 || normals.norm() < NORMALS_AGREE * count as f64 {
-            continue;
-        }
-        let (centre, normal) = (points / count as f64, normals.normalize());
-        let along: f64 = (pair.frames.iter())
-            .filter_map(|&f| frames.get(f as usize))
-            .map(|f| f.inverse_mass_at(centre, normal))
-            .sum();
-        if along <= 0.0 {
-            continue;
-        }
-        let push = shortfalls / count as f64 / along;
-        let share = push / count as f64;
-        for &k in members {
-            let c = &mut contacts[k];
-            if c.target > c.normal.dot(&c.separation(frames)) {
-                c.impulse += share;
-            }
-        }
-        for (&f, sign) in pair.frames.iter().zip([1.0, -1.0]) {
-            if let Some(frame) = frames.get_mut(f as usize) {
-                frame.push(centre, normal * (push * sign));
-            }
-        }
-    }
-}
-
-/// The points of the display surface of each frame in `touching` that lie within `margin` of
-/// a plane (floor, walls), as contacts with the plane that keep them on it, with its
-/// friction `mu`: the plane holds up a stack's bottom box in the same passes as the boxes on
-/// it. Solved after them, it turned the box back each substep that the boxes above had
-/// pressed it down at their off-centre weight, and the boxes, held to it by friction, rode
-/// that turn: a stack of steel boxes each shifted 2 cm walked sideways 3 mm a second.
-pub(crate) fn plane_contacts(
-    (surface, planes, mu): (&SurfacePoints, &[Plane], f64),
-    (x, previous): (&[V3], &[V3]),
-    (frame_of, touching): (&[u32], &[bool]),
-    margin: f64,
-    out: &mut Vec<FramePairContact>,
-) {
-    if planes.is_empty() {
-        return;
-    }
-    for (nodes, weights) in surface.nodes.iter().zip(&surface.weights) {
-        let frame = frame_of.get(nodes[0] as usize).copied().unwrap_or(NO_FRAME);
-        if !touching.get(frame as usize).copied().unwrap_or(false) {
-            continue;
-        }
-        let (mut p, mut p_prev) = (V3::zeros(), V3::zeros());
-        for (&k, &w) in nodes.iter().zip(weights) {
-            p += x[k as usize] * w;
-            p_prev += previous[k as usize] * w;
-        }
-        for plane in planes {
-            let gap = plane.normal.dot(&p) - plane.offset;
-            if gap >= margin || gap.is_nan() {
+fn push_at_centres(frames: &mut [RigidFrame], contacts: &mut [FramePairContact], first: usize) {
+    let mut pairs = short_pairs(frames, contacts);
+    for sweep in first..first + CENTRE_SWEEPS {
+        let mut largest = 0.0f64;
+        for p in alternating(pairs.len(), sweep) {
+            let pair = &mut pairs[p];
+            let count = pair.members.len() as f64;
+            if pair.normal.norm() < NORMALS_AGREE * count {
                 continue;
             }
-            let on_plane = p - plane.normal * gap;
-            let sides = [
-                Side {
-                    frame,
-                    weight: 1.0,
-                    point: p,
-                },
-                Side {
-                    frame: NO_FRAME,
-                    weight: -1.0,
-                    point: on_plane,
-                },
-            ];
-            let contact = FramePairContact::new(sides, (plane.normal, p_prev - on_plane), 0.0, mu);
-            out.push(contact);
+            let normal = pair.normal.normalize();
+            let centre = match frames.get(pair.frames[0] as usize) {
+                Some(frame) => frame.moved(pair.mean[0]),
+                None => continue,
+            };
+            let along: f64 = (pair.frames.iter())
+                .filter_map(|&f| frames.get(f as usize))
+                .map(|f| f.inverse_mass_at(centre, normal))
+                .sum();
+            if along <= 0.0 {
+                continue;
+            }
+            let total = (pair.impulse + pair.short_now(frames) / count / along).max(0.0);
+            let push = total - pair.impulse;
+            pair.impulse = total;
+            largest = largest.max(push.abs() * along);
+            for (&f, sign) in pair.frames.iter().zip([1.0, -1.0]) {
+                if let Some(frame) = frames.get_mut(f as usize) {
+                    frame.push(centre, normal * (push * sign));
+                }
+            }
+        }
+        if largest <= CONVERGED {
+            break;
+        }
+    }
+    for pair in &pairs {
+        let share = pair.impulse / pair.members.len() as f64;
+        for &k in &pair.members {
+            contacts[k].impulse += share;
+        }
+    }
+}
+
+/// The display-surface points of the frames in contact with other frames, where they meet
+/// static geometry, as contacts of the same passes: the floor or a collider holds up a
+/// stack's bottom box together with the boxes on it. Solved after them, it turned the box
+/// back each substep that the boxes above had pressed it down at their off-centre weight,
+/// and the boxes, held to it by friction, rode that turn: a stack of steel boxes each
+/// shifted 2 cm walked sideways 3 mm a second. On a collider, the bottom box was pushed back
+/// up into the box above, which then sank into it, and the stack fell.
+pub(crate) struct StaticContacts<'a> {
+    pub surface: &'a SurfacePoints,
+    /// Node positions now and at the substep's start.
+    pub x: &'a [V3],
+    pub previous: &'a [V3],
+    /// Per node its frame, and per frame whether it is in contact with another.
+    pub frame_of: &'a [u32],
+    pub touching: &'a [bool],
+    /// Points farther from the plane or face than this are left out, m.
+    pub margin: f64,
+}
+
+impl StaticContacts<'_> {
+    /// Surface point `i`'s frame, if it is one in `touching`, and where the point is now and
+    /// was at the substep's start.
+    fn point(&self, i: usize) -> Option<(u32, V3, V3)> {
+        let nodes = self.surface.nodes.get(i)?;
+        let frame = self.frame_of.get(nodes[0] as usize).copied()?;
+        if !self.touching.get(frame as usize).copied().unwrap_or(false) {
+            return None;
+        }
+        let (mut p, mut p_prev) = (V3::zeros(), V3::zeros());
+        for (&k, &w) in nodes.iter().zip(&self.surface.weights[i]) {
+            p += self.x[k as usize] * w;
+            p_prev += self.previous[k as usize] * w;
+        }
+        Some((frame, p, p_prev))
+    }
+
+    /// The contact of point `p` of `frame` (at `p_prev` at the substep's start) with the plane
+    /// through `on_plane` of unit `normal`, with friction `mu`, if within the margin.
+    fn push(
+        &self,
+        (frame, p, p_prev): (u32, V3, V3),
+        (normal, on_plane): (V3, V3),
+        mu: f64,
+        out: &mut Vec<FramePairContact>,
+    ) {
+        let gap = normal.dot(&(p - on_plane));
+        if gap >= self.margin || gap.is_nan() {
+            return;
+        }
+        let at = p - normal * gap;
+        let sides = [
+            Side {
+                frame,
+                weight: 1.0,
+                point: p,
+            },
+            Side {
+                frame: NO_FRAME,
+                weight: -1.0,
+                point: at,
+            },
+        ];
+        out.push(FramePairContact::new(sides, (normal, p_prev - at), 0.0, mu));
+    }
+
+    /// The points' contacts with `planes` (floor, walls), whose friction is `mu`.
+    pub(crate) fn planes(&self, planes: &[Plane], mu: f64, out: &mut Vec<FramePairContact>) {
+        if planes.is_empty() {
+            return;
+        }
+        for i in 0..self.surface.nodes.len() {
+            let Some(point) = self.point(i) else {
+                continue;
+            };
+            for plane in planes {
+                let on_plane = plane.normal * plane.offset;
+                self.push(point, (plane.normal, on_plane), mu, out);
+            }
+        }
+    }
+
+    /// The points resting on a static collider's face (`resting`: per surface point, the
+    /// collider, the face's unit normal and a point of it, see `Model::collider_side`),
+    /// against the face's plane with the collider's friction (`friction`, per collider).
+    pub(crate) fn faces(
+        &self,
+        resting: &[Option<(u32, V3, V3)>],
+        friction: impl Fn(u32) -> f64,
+        out: &mut Vec<FramePairContact>,
+    ) {
+        for (i, side) in resting.iter().enumerate() {
+            let Some((collider, normal, on_face)) = *side else {
+                continue;
+            };
+            if let Some(point) = self.point(i) {
+                self.push(point, (normal, on_face), friction(collider), out);
+            }
         }
     }
 }

@@ -1028,7 +1028,12 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
         separating: model.separated_by.map(|_| &model.overlapping[..]),
         opening: MAX_SEPARATION_SPEED * dt,
         reverse: false,
-        planes: Some((&world.surface, &world.settings.planes)),
+        statics: Some(bodies::Statics {
+            surface: &world.surface,
+            planes: &world.settings.planes,
+            colliders: &world.body_contact.colliders,
+            resting: &model.collider_side,
+        }),
     };
     model.contact_shifted = true;
     let mut frames = contact_frames(world, &model.held, &model.inv_mass, &mut model.frame_of);
