@@ -182,6 +182,24 @@ pub(super) fn friction(slip: V3, limit: f64) -> V3 {
     }
 }
 
+/// Coulomb friction as an accumulated positional impulse (kg·m): the contact's new total
+/// impulse against `slip` (its tangential motion over the substep), given its total so far
+/// `accumulated`, its inverse mass along a unit direction (`inverse_mass`) and the bound
+/// `limit` (μ times its normal impulse). `None` without slip or where nothing moves.
+pub(super) fn friction_impulse(
+    slip: V3,
+    accumulated: V3,
+    limit: f64,
+    inverse_mass: impl FnOnce(V3) -> f64,
+) -> Option<V3> {
+    let length = slip.norm();
+    if length <= 0.0 {
+        return None;
+    }
+    let along = inverse_mass(slip / length);
+    (along > 0.0).then(|| friction(accumulated - slip / along, limit))
+}
+
 /// Indices `0..n`, forwards on even passes and backwards on odd ones: sequential impulses
 /// over a body's contacts in this order leave no contact always first.
 pub(super) fn alternating(n: usize, pass: usize) -> impl Iterator<Item = usize> {

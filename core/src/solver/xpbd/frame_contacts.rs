@@ -24,7 +24,7 @@
 //! V-shaped groove meets the other wall from behind), and its push, taken by the whole body,
 //! threw a wooden box a metre along the groove; the face on the near side holds the point.
 
-use super::contact::{alternating, friction, tangential};
+use super::contact::{alternating, friction_impulse, tangential};
 use super::frames::RigidFrame;
 use super::V3;
 
@@ -112,15 +112,11 @@ pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FrameContact]) {
             let frame = &mut frames[c.frame as usize];
             let p = frame.moved(c.point);
             let slip = tangential(p - c.previous, &c.normal);
-            let length = slip.norm();
-            if length <= 0.0 {
+            let limit = c.friction * c.impulse;
+            let along = |u| frame.inverse_mass_at(p, u);
+            let Some(total) = friction_impulse(slip, c.friction_impulse, limit, along) else {
                 continue;
-            }
-            let along = frame.inverse_mass_at(p, slip / length);
-            if along <= 0.0 {
-                continue;
-            }
-            let total = friction(c.friction_impulse - slip / along, c.friction * c.impulse);
+            };
             frame.push(p, total - c.friction_impulse);
             c.friction_impulse = total;
         }

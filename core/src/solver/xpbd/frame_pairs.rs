@@ -22,7 +22,7 @@
 //! [`super::shift_bodies`] through `rest`, grown as [`super::bodies`] grows it.
 
 use super::bodies::NO_FRAME;
-use super::contact::{alternating, friction, tangential};
+use super::contact::{alternating, friction_impulse, tangential};
 use super::frames::RigidFrame;
 use super::V3;
 use crate::solver::contact::Plane;
@@ -161,15 +161,11 @@ pub(crate) fn solve(frames: &mut [RigidFrame], contacts: &mut [FramePairContact]
                 continue;
             }
             let slip = tangential(c.separation(frames) - c.previous, &c.normal);
-            let length = slip.norm();
-            if length <= 0.0 {
+            let limit = c.friction * c.impulse;
+            let along = |u| c.inverse_mass(frames, u);
+            let Some(total) = friction_impulse(slip, c.friction_impulse, limit, along) else {
                 continue;
-            }
-            let along = c.inverse_mass(frames, slip / length);
-            if along <= 0.0 {
-                continue;
-            }
-            let total = friction(c.friction_impulse - slip / along, c.friction * c.impulse);
+            };
             c.push(frames, total - c.friction_impulse);
             c.friction_impulse = total;
         }
@@ -371,16 +367,22 @@ impl StaticContacts<'_> {
 
     /// The points' contacts with `planes` (floor, walls), whose friction is `mu`.
     pub(crate) fn planes(&self, planes: &[Plane], mu: f64, out: &mut Vec<FramePairContact>) {
-        if planes.is_empty() {
-            return;
-        }
-        for i in 0..self.surface.nodes.len() {
-            let Some(point) = self.point(i) else {
-                continue;
-            };
-            for plane in planes {
-                let on_plane = plane.normal * plane.offset;
-                self.push(point, (plane.normal, on_plane), mu, out);
+        let mut near = Vec::new();
+        for plane in planes {
+            near.clear();
+            let on_plane = plane.normal * plane.offset;
+            for i in 0..self.surface.nodes.len() {
+                if let Some(point) = self.point(i) {
+                    if plane.normal.dot(&(point.1 - on_plane)) < self.margin {
+                        near.push(point);
+                    }
+                }
+            }
+            // The surface points are in body order: one run per frame.
+            for run in near.chunk_by(|a, b| a.0 == b.0) {
+                for k in outline(run.iter().map(|p| p.1), plane.normal) {
+                    self.push(run[k], (plane.normal, on_plane), mu, out);
+                }
             }
         }
     }
@@ -403,4 +405,42 @@ impl StaticContacts<'_> {
             }
         }
     }
+}
+
+/// Directions in a plane along which [`outline`] takes a body's outermost point.
+const OUTLINE_DIRECTIONS: usize = 8;
+
+/// The indices of the points of `points` (of one rigid body) outermost along
+/// [`OUTLINE_DIRECTIONS`] directions in the plane of unit normal `n`, each once, in order.
+/// A rigid body's distance from a plane is affine over its points, so it is least at a
+/// corner of their outline: a box's face resting on the floor is held by its corners as by
+/// its hundreds of samples, in a fraction of the passes' time. The first point wins a tie.
+fn outline(points: impl Iterator<Item = V3>, n: V3) -> Vec<usize> {
+    let u = n
+        .cross(&if n.x.abs() < 0.9 { V3::x() } else { V3::y() })
+        .normalize();
+    let v = n.cross(&u);
+    let directions: Vec<V3> = (0..OUTLINE_DIRECTIONS)
+        .map(|k| {
+            let angle = std::f64::consts::TAU * k as f64 / OUTLINE_DIRECTIONS as f64;
+            u * angle.cos() + v * angle.sin()
+        })
+        .collect();
+    let mut best = vec![(f64::NEG_INFINITY, usize::MAX); OUTLINE_DIRECTIONS];
+    for (i, p) in points.enumerate() {
+        for (d, b) in directions.iter().zip(&mut best) {
+            let along = d.dot(&p);
+            if along > b.0 {
+                *b = (along, i);
+            }
+        }
+    }
+    let mut chosen: Vec<usize> = best
+        .iter()
+        .map(|b| b.1)
+        .filter(|&i| i != usize::MAX)
+        .collect();
+    chosen.sort_unstable();
+    chosen.dedup();
+    chosen
 }
