@@ -19,6 +19,10 @@
 //! folded and the bake went to 13 800 J, and a rubber ball pressing the jelly onto the floor
 //! likewise; more substeps made it worse.
 //!
+//! The contacts between two held or rigid bodies (every node of theirs moved by a frame) are
+//! solved first and apart, together with the floor and colliders under those bodies
+//! ([`super::frame_pairs`]); this module's pass takes the rest.
+//!
 //! Parts that start inside each other's surfaces (a shallow overlap the glue does not take)
 //! separate at [`super::MAX_SEPARATION_SPEED`] at most while their nodes carry the start's
 //! overlap flag, not at their depth over one substep: such a contact stops its features'
@@ -115,7 +119,9 @@ impl BodyContacts<'_> {
         {
             let mut touching = vec![false; frames.len()];
             for s in pairs.iter().flat_map(|c| &c.sides) {
-                touching[s.frame as usize] = true;
+                if let Some(t) = touching.get_mut(s.frame as usize) {
+                    *t = true;
+                }
             }
             let statics = StaticContacts {
                 surface,

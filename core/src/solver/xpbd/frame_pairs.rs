@@ -10,11 +10,15 @@
 //! each other and leaned 30 cm in a second; turned every other one by 0.25 rad, they fell.
 //!
 //! Here every contact is first reduced to one point on each side (a frame moves its points
-//! affinely, so a side's weighted nodes move as their weighted mean does). Then normal passes
-//! over all the contacts, in alternating order, accumulate each contact's impulse (never
-//! pulling) until no pass moves a contact by more than [`CONVERGED`]; then Coulomb friction
-//! at each contact on its slip over the substep, bounded by μ times its normal impulse, the
-//! way the colliders' frame contacts have it ([`super::frame_contacts`]).
+//! affinely, so a side's weighted nodes move as their weighted mean does). The floor, walls
+//! and static colliders under these frames join as contacts with a fixed side
+//! ([`StaticContacts`]). Then, in alternating orders: pushes at each pair's centre
+//! (`push_at_centres`), which carry a stack's weight down to the floor; normal passes over
+//! all the contacts that accumulate each contact's impulse (never pulling) until no pass
+//! moves a contact by more than [`CONVERGED`]; and Coulomb friction at each contact on its
+//! slip over the substep, bounded by μ times its normal impulse, the way the colliders'
+//! frame contacts have it ([`super::frame_contacts`]). Serial, in the contacts' order: the
+//! same bits on any thread count.
 //!
 //! A contact keeps `n · d ≥ min(g, start + opening)`: the gap `g`, or, for a contact closer
 //! than the gap when the substep started, that start opened by `opening` at most
@@ -185,8 +189,9 @@ struct Pair {
     normal: V3,
     /// Their summed shortfalls when the passes start, m.
     short: f64,
-    /// Per side, its points' mean, and `Σ (p − c) × m` about its frame's centre.
-    mean: [V3; 2],
+    /// The first side's points' mean (where the pushes act), and per side `Σ (p − c) × m`
+    /// about its frame's centre.
+    centre: V3,
     turn: [V3; 2],
     /// The pushes so far, kg·m.
     impulse: f64,
@@ -223,7 +228,7 @@ fn short_pairs(frames: &[RigidFrame], contacts: &[FramePairContact]) -> Vec<Pair
                 members: Vec::new(),
                 normal: V3::zeros(),
                 short: 0.0,
-                mean: [V3::zeros(); 2],
+                centre: V3::zeros(),
                 turn: [V3::zeros(); 2],
                 impulse: 0.0,
             });
@@ -234,16 +239,15 @@ fn short_pairs(frames: &[RigidFrame], contacts: &[FramePairContact]) -> Vec<Pair
         pair.members.push(k);
         pair.normal += m;
         pair.short += short;
+        pair.centre += c.sides[0].point;
         for (side, s) in c.sides.iter().enumerate() {
-            pair.mean[side] += s.point;
             if let Some(frame) = frames.get(s.frame as usize) {
                 pair.turn[side] += (s.point - frame.centre).cross(&m);
             }
         }
     }
     for pair in &mut pairs {
-        let count = pair.members.len() as f64;
-        pair.mean = pair.mean.map(|p| p / count);
+        pair.centre /= pair.members.len() as f64;
     }
     pairs
 }
@@ -268,7 +272,7 @@ fn push_at_centres(frames: &mut [RigidFrame], contacts: &mut [FramePairContact],
             }
             let normal = pair.normal.normalize();
             let centre = match frames.get(pair.frames[0] as usize) {
-                Some(frame) => frame.moved(pair.mean[0]),
+                Some(frame) => frame.moved(pair.centre),
                 None => continue,
             };
             let along: f64 = (pair.frames.iter())
@@ -443,4 +447,28 @@ fn outline(points: impl Iterator<Item = V3>, n: V3) -> Vec<usize> {
     chosen.sort_unstable();
     chosen.dedup();
     chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_outline_of_a_resting_face_is_its_corners() {
+        // A 5 × 5 grid of samples on a face resting on the floor (normal +y).
+        let points: Vec<V3> = (0..25)
+            .map(|k| V3::new(f64::from(k % 5) * 0.1, 0.0, f64::from(k / 5) * 0.1))
+            .collect();
+        let chosen = outline(points.iter().copied(), V3::y());
+        for corner in [0, 4, 20, 24] {
+            assert!(chosen.contains(&corner), "{chosen:?}");
+        }
+        let on_rim = |p: &V3| {
+            [p.x, p.z]
+                .iter()
+                .any(|&c| c.abs() < 1e-12 || (c - 0.4).abs() < 1e-12)
+        };
+        assert!(chosen.iter().all(|&k| on_rim(&points[k])), "{chosen:?}");
+        assert!(chosen.len() <= OUTLINE_DIRECTIONS);
+    }
 }
