@@ -144,6 +144,9 @@ impl BodyContacts<'_> {
             .chain(backward.into_iter().flatten())
         {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
+            if between_frames(stencil, &frame) {
+                continue; // solved with the other frame pairs
+            }
             let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
             // Up to two sides moved as frames: (frame, summed weight, weighted point).
             let mut sides = [(NO_FRAME, 0.0, V3::zeros()); 2];
@@ -162,9 +165,6 @@ impl BodyContacts<'_> {
                 sides[slot].0 = f;
                 sides[slot].1 += s;
                 sides[slot].2 += xk * s;
-            }
-            if all_frames(stencil, &frame) && sides[1].0 != NO_FRAME {
-                continue; // solved with the other frame pairs
             }
             let mut points = [V3::zeros(); 2];
             for (side, point) in sides.iter().zip(&mut points) {
@@ -260,7 +260,7 @@ impl BodyContacts<'_> {
         }
         for c in self.constraints {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
-            if !all_frames(stencil, &frame) {
+            if !between_frames(stencil, &frame) {
                 continue;
             }
             let mut sides = [Side {
@@ -334,9 +334,21 @@ impl BodyContacts<'_> {
     }
 }
 
-/// Whether every node of `stencil` moves with a frame.
-fn all_frames(stencil: &[(u32, f64)], frame: &impl Fn(usize) -> u32) -> bool {
-    stencil.iter().all(|&(k, _)| frame(k as usize) != NO_FRAME)
+/// Whether every node of `stencil` moves with a frame, and its nodes are two frames'.
+fn between_frames(stencil: &[(u32, f64)], frame: &impl Fn(usize) -> u32) -> bool {
+    let Some(&(first, _)) = stencil.first() else {
+        return false;
+    };
+    let first = frame(first as usize);
+    let mut two = false;
+    for &(k, _) in stencil {
+        let f = frame(k as usize);
+        if f == NO_FRAME {
+            return false;
+        }
+        two |= f != first;
+    }
+    first != NO_FRAME && two
 }
 
 /// Grow a held or rigid body's move `by` (what its separating contacts leave to `rest`) so
