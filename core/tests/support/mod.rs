@@ -214,3 +214,18 @@ pub fn add_part(w: &mut World, name: &str, m: &Mesh, material: &Material) -> Bod
     w.add_collision_surface(h, &m.lattice, &m.points, &m.triangles);
     h
 }
+
+#[allow(dead_code)]
+/// An XPBD world whose contact layer is that of 0.5 m parts at 6 cells in `material`, with a floor at
+/// y = 0.
+pub fn floored_parts_world(material: &Material) -> World {
+    World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(0.5 / 6.0, material, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    })
+}
