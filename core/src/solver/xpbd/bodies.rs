@@ -63,8 +63,8 @@ pub(crate) struct BodyContacts<'a> {
     /// Per node, while parts that started overlapping are still separating: in contact at
     /// the start (such a contact opens by `opening` at most a substep whatever its start).
     pub separating: Option<&'a [bool]>,
-    /// Whether to solve the constraints in reverse order (every other substep in a world
-    /// with held or rigid bodies: see [`super::Model::contact_passes`]).
+    /// Whether to start the frame pairs' alternating passes in reverse order (every other
+    /// substep in a world with held or rigid bodies: see [`super::Model::contact_passes`]).
     pub reverse: bool,
     /// How far a contact closer than the gap at the substep's start, or a separating one,
     /// may open in one substep beyond where it started, m.
@@ -137,13 +137,10 @@ impl BodyContacts<'_> {
             statics.faces(resting, friction, &mut pairs);
         }
         frame_pairs::solve(frames, &mut pairs, self.reverse);
-        let forward = (!self.reverse).then(|| self.constraints.iter());
-        let backward = self.reverse.then(|| self.constraints.iter().rev());
-        for c in forward
-            .into_iter()
-            .flatten()
-            .chain(backward.into_iter().flatten())
-        {
+        // The rest in one order: alternated every other substep, an elastic box resting on a
+        // held one crept 2 mm a second (the two orders' friction did not cancel), and a stack
+        // of six rubber boxes fell sooner.
+        for c in self.constraints {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             if between_frames(stencil, &frame) {
                 continue; // solved with the other frame pairs
