@@ -32,6 +32,7 @@
 use super::contact::{friction, tangential};
 use super::frame_pairs::{self, FramePairContact, Side, StaticContacts};
 use super::frames::{apply_frames, RigidFrame};
+use super::support::Support;
 use crate::collide::StaticCollider;
 use crate::solver::body_contact::BodyConstraint;
 use crate::solver::contact::Plane;
@@ -169,7 +170,8 @@ impl BodyContacts<'_> {
                 let (f, sum, weighted) = *side;
                 if f != NO_FRAME && sum != 0.0 {
                     *point = weighted / sum;
-                    if held_by_support(supports.get(f as usize), c.normal * sum) {
+                    let support = supports.get(f as usize).and_then(Option::as_ref);
+                    if support.is_some_and(|s| s.holds(*point, c.normal * sum)) {
                         side.1 = 0.0; // it does not move (see `supports`)
                         continue;
                     }
@@ -244,14 +246,11 @@ impl BodyContacts<'_> {
 }
 
 impl BodyContacts<'_> {
-    /// Per frame (empty when none has any): where a held or rigid body in contact with an
-    /// elastic one rests on the floor, a wall or a static collider, the mean normal of those
-    /// static contacts ([`StaticContacts`], within the gap). A contact that presses such a
-    /// body into what it rests on moves only the elastic side ([`held_by_support`]), as
-    /// shock propagation has it in a stack: pushed down off-centre by a rubber box on it, a
-    /// wooden box on the floor was turned back by the floor's later stage each substep, and
-    /// the rubber box, held to it by friction, rode that turn: the two walked 1.3 mm a second.
-    fn supports(&self, x: &[V3], frames: &[RigidFrame], frame_of: &[u32]) -> Vec<Option<V3>> {
+    /// Per frame (empty when none has any): what a held or rigid body in contact with an
+    /// elastic one rests on, from its static contacts within the gap ([`StaticContacts`]):
+    /// a contact that presses it into that support moves only the elastic side
+    /// ([`Support::holds`]).
+    fn supports(&self, x: &[V3], frames: &[RigidFrame], frame_of: &[u32]) -> Vec<Option<Support>> {
         let Some(statics) = self.statics.filter(|_| !frames.is_empty()) else {
             return Vec::new();
         };
@@ -283,15 +282,13 @@ impl BodyContacts<'_> {
         let colliders = statics.colliders;
         let friction = |c: u32| colliders.get(c as usize).map_or(0.0, |c| c.friction);
         contacts.faces(statics.resting, friction, &mut found);
-        let mut normals = vec![V3::zeros(); frames.len()];
+        let mut contacts = vec![Vec::new(); frames.len()];
         for c in &found {
-            if let Some(n) = normals.get_mut(c.sides[0].frame as usize) {
-                *n += c.normal;
+            if let Some(list) = contacts.get_mut(c.sides[0].frame as usize) {
+                list.push((c.sides[0].point, c.normal));
             }
         }
-        (normals.into_iter())
-            .map(|n| (n.norm() > 0.0).then(|| n.normalize()))
-            .collect()
+        contacts.iter().map(|c| Support::new(c)).collect()
     }
 
     /// The constraints between two frames, every node of theirs moved by one
@@ -401,20 +398,6 @@ fn between_frames(stencil: &[(u32, f64)], frame: &impl Fn(usize) -> u32) -> bool
         two |= f != first;
     }
     first != NO_FRAME && two
-}
-
-/// How squarely a contact's push must press a held or rigid body into what it rests on (the
-/// cosine with the support's normal) for the body to stay put ([`BodyContacts::supports`]).
-const PRESSED_INTO_SUPPORT: f64 = 0.9;
-
-/// Whether a frame resting on static geometry of mean normal `support` stays put under a
-/// contact that would move it along `push`: pressed into its support, the support holds it.
-fn held_by_support(support: Option<&Option<V3>>, push: V3) -> bool {
-    let Some(Some(n)) = support else {
-        return false;
-    };
-    let length = push.norm();
-    length > 0.0 && push.dot(n) < -PRESSED_INTO_SUPPORT * length
 }
 
 /// Grow a held or rigid body's move `by` (what its separating contacts leave to `rest`) so

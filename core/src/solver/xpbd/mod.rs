@@ -40,6 +40,7 @@ mod lane_io;
 mod lanes;
 mod restitution;
 mod rigid_contacts;
+mod support;
 mod torque;
 
 use self::crowding::Crowding;
