@@ -21,7 +21,9 @@
 //!
 //! The contacts between two held or rigid bodies (every node of theirs moved by a frame) are
 //! solved first and apart, together with the floor and colliders under those bodies
-//! ([`super::frame_pairs`]); this module's pass takes the rest.
+//! ([`super::frame_pairs`]); this module's pass takes the rest. In it, a held or rigid body
+//! that rests on the floor, a wall or a collider stays put under a push into that support over
+//! the outline it rests on ([`super::support`]): only the elastic side moves.
 //!
 //! Parts that start inside each other's surfaces (a shallow overlap the glue does not take)
 //! separate at [`super::MAX_SEPARATION_SPEED`] at most while their nodes carry the start's
