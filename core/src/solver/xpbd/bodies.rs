@@ -112,33 +112,13 @@ impl BodyContacts<'_> {
         let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
         // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
         let mut frame_rest = vec![V3::zeros(); frames.len()];
-        let supports = self.supports(x, frames, frame_of);
-        let mut pairs = self.frame_pairs(x, frames, frame_of, (&mut out, &mut frame_rest));
-        if let Some(Statics {
-            surface,
-            planes,
-            colliders,
-            resting,
-        }) = self.statics.filter(|_| !pairs.is_empty())
-        {
-            let mut touching = vec![false; frames.len()];
-            for s in pairs.iter().flat_map(|c| &c.sides) {
-                if let Some(t) = touching.get_mut(s.frame as usize) {
-                    *t = true;
-                }
-            }
-            let statics = StaticContacts {
-                surface,
-                x,
-                previous: self.previous,
-                frame_of,
-                touching: &touching,
-                margin: self.gap,
-            };
-            statics.planes(planes, self.friction, &mut pairs);
-            let friction = |c: u32| colliders.get(c as usize).map_or(0.0, |c| c.friction);
-            statics.faces(resting, friction, &mut pairs);
-        }
+        let mut mixed = vec![false; frames.len()];
+        let mut pairs = self.frame_pairs(
+            x,
+            (frames, frame_of),
+            (&mut out, &mut frame_rest, &mut mixed),
+        );
+        let supports = self.add_statics(x, frame_of, &mixed, &mut pairs);
         frame_pairs::solve(frames, &mut pairs, self.reverse);
         // The rest in one order: alternated every other substep, an elastic box resting on a
         // held one crept 2 mm a second (the two orders' friction did not cancel), and a stack
@@ -248,35 +228,40 @@ impl BodyContacts<'_> {
 }
 
 impl BodyContacts<'_> {
-    /// Per frame (empty when none has any): what a held or rigid body in contact with an
-    /// elastic one rests on, from its static contacts within the gap ([`StaticContacts`]):
-    /// a contact that presses it into that support moves only the elastic side
-    /// ([`Support::holds`]).
-    fn supports(&self, x: &[V3], frames: &[RigidFrame], frame_of: &[u32]) -> Vec<Option<Support>> {
-        let Some(statics) = self.statics.filter(|_| !frames.is_empty()) else {
+    /// The static contacts (floor, walls, colliders, within the gap: [`StaticContacts`]) of
+    /// the frames in `pairs` and of those in contact with an elastic body (`mixed`), found in
+    /// one scan of the surface points. The first join `pairs`; the second make, per frame
+    /// (empty when none is mixed), what such a body rests on: a contact that presses it into
+    /// that support moves only the elastic side ([`Support::holds`]).
+    fn add_statics(
+        &self,
+        x: &[V3],
+        frame_of: &[u32],
+        mixed: &[bool],
+        pairs: &mut Vec<FramePairContact>,
+    ) -> Vec<Option<Support>> {
+        let Some(statics) = self.statics else {
             return Vec::new();
         };
-        let frame = |k: u32| frame_of.get(k as usize).copied().unwrap_or(NO_FRAME);
-        let mut mixed = vec![false; frames.len()];
-        for c in self.constraints {
-            let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
-            if stencil.iter().any(|&(k, _)| frame(k) == NO_FRAME) {
-                for &(k, _) in stencil {
-                    if let Some(m) = mixed.get_mut(frame(k) as usize) {
-                        *m = true;
-                    }
-                }
+        let mut in_pairs = vec![false; mixed.len()];
+        for s in pairs.iter().flat_map(|c| &c.sides) {
+            if let Some(t) = in_pairs.get_mut(s.frame as usize) {
+                *t = true;
             }
         }
-        if !mixed.contains(&true) {
+        let any_mixed = mixed.contains(&true);
+        if !any_mixed && !in_pairs.contains(&true) {
             return Vec::new();
         }
+        let touching: Vec<bool> = (in_pairs.iter().zip(mixed))
+            .map(|(p, m)| *p || *m)
+            .collect();
         let contacts = StaticContacts {
             surface: statics.surface,
             x,
             previous: self.previous,
             frame_of,
-            touching: &mixed,
+            touching: &touching,
             margin: self.gap,
         };
         let mut found = Vec::new();
@@ -284,34 +269,49 @@ impl BodyContacts<'_> {
         let colliders = statics.colliders;
         let friction = |c: u32| colliders.get(c as usize).map_or(0.0, |c| c.friction);
         contacts.faces(statics.resting, friction, &mut found);
-        let mut contacts = vec![Vec::new(); frames.len()];
-        for c in &found {
-            if let Some(list) = contacts.get_mut(c.sides[0].frame as usize) {
-                list.push((c.sides[0].point, c.normal));
+        let mut supported = vec![Vec::new(); mixed.len()];
+        for c in found {
+            let f = c.sides[0].frame as usize;
+            if mixed.get(f) == Some(&true) {
+                supported[f].push((c.sides[0].point, c.normal));
+            }
+            if in_pairs.get(f) == Some(&true) {
+                pairs.push(c);
             }
         }
-        contacts.iter().map(|c| Support::new(c)).collect()
+        if !any_mixed {
+            return Vec::new();
+        }
+        supported.iter().map(|c| Support::new(c)).collect()
     }
 
     /// The constraints between two frames, every node of theirs moved by one
     /// ([`frame_pairs`]), at `x` before any frame has moved, with the gaps they keep. Marks
     /// `out` touched by those closer than the gap, and leaves what separating ones cannot
-    /// open this substep in `frame_rest`.
+    /// open this substep in `frame_rest`; marks `mixed` the frames in a constraint with an
+    /// elastic body.
     fn frame_pairs(
         &self,
         x: &[V3],
-        frames: &[RigidFrame],
-        frame_of: &[u32],
-        (out, frame_rest): (&mut Touch, &mut [V3]),
+        (frames, frame_of): (&[RigidFrame], &[u32]),
+        (out, frame_rest, mixed): (&mut Touch, &mut [V3], &mut [bool]),
     ) -> Vec<FramePairContact> {
         let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
         let mut pairs = Vec::new();
-        if frames.len() < 2 {
+        if frames.is_empty() {
             return pairs;
         }
         for c in self.constraints {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             if !between_frames(stencil, &frame) {
+                // With an elastic body: its frames are `mixed`.
+                if stencil.iter().any(|&(k, _)| frame(k as usize) == NO_FRAME) {
+                    for &(k, _) in stencil {
+                        if let Some(m) = mixed.get_mut(frame(k as usize) as usize) {
+                            *m = true;
+                        }
+                    }
+                }
                 continue;
             }
             let mut sides = [Side {
