@@ -28,7 +28,7 @@ pub(crate) struct BodyConstraint {
 /// The stencils of a pair's contacts, made where the pair's search ran (side by side with the
 /// other pairs'), for [`BodyContact::constrain_with`] to copy: contact `k`'s entries are
 /// `entries[ends[k - 1]..ends[k]]`.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct Stencils {
     pub entries: Vec<(u32, f64)>,
     pub ends: Vec<u32>,

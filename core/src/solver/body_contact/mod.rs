@@ -140,10 +140,12 @@ mod neighbours;
 pub(crate) mod overlap;
 mod prepare;
 mod simplify;
+mod still_pairs;
 pub(crate) use constraint::BodyConstraint;
 use constraint::Stencils;
 use detect::*;
 use mesh::{refine, BodyMesh};
+use still_pairs::STILL_LAYERS;
 
 /// A body's node box: its lowest and highest corner, m.
 pub(crate) type NodeBox = (Vector3<f64>, Vector3<f64>);
@@ -227,6 +229,16 @@ pub struct BodyContact {
     /// Hertz `n2` of each (body, partner) pair in a contact episode, per partner slot.
     hertz_n2: Vec<Option<f64>>,
     normals: Vec<Vector3<f64>>,
+    /// The contacts of constrained pairs at rest, kept from pass to pass.
+    still: still_pairs::StillPairs,
+    /// Per body: whether it moves as one rigid frame (held or rigid, set by the XPBD step);
+    /// only pairs of such bodies keep their contacts ([`still_pairs`]).
+    pub(crate) frame_bodies: Vec<bool>,
+    /// Search every pair in every pass (for tests: keeping the contacts of pairs at rest
+    /// changes where they rest by less than their motion allows).
+    pub(crate) still_off: bool,
+    /// How many pairs kept their contacts in the last pass.
+    pub(crate) kept_pairs: usize,
 }
 
 impl BodyContact {
@@ -519,6 +531,12 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     let samples = (input.surface, &input.nodes.position[..]);
     search_pairs(bc, samples, &mut searches, &mut edge_scratch);
     bc.edge_scratch = edge_scratch;
+    for pair in searches.iter().filter(|p| !p.kept) {
+        if bc.constrains(pair.a, pair.b) {
+            (bc.still).keep((pair.a, pair.b), bc.step, &pair.found, &pair.stencils);
+        }
+    }
+    bc.still.forget_older(bc.step);
     // Hertz's episodes end for the pairs out of reach (the others' end in `respond`).
     if bc.model == ContactModel::Hertz {
         end_hertz_episodes(bc, &searches);
@@ -605,6 +623,9 @@ struct PairSearches {
     /// the substep ([`CONSTRAINT_FRONT`]).
     front: Option<f64>,
     searches: [Option<detect::PairSearch>; 2],
+    /// Whether `found` and `stencils` are a search's of an earlier pass, kept
+    /// ([`still_pairs`]): then there is nothing to search.
+    kept: bool,
     found: Vec<Contact>,
     /// The stencils of `found`'s contacts that act (deeper than 0), made beside the search
     /// when the pair's contacts are constraints (from the second step: the first decides
@@ -615,12 +636,39 @@ struct PairSearches {
 /// Broad phase: the pairs of bodies whose boxes come within reach of each other (a contact
 /// needs a point of one within the reach of the other's surface, or crossing it in the step:
 /// boxes farther apart than that, with both moving at their fastest node, cannot touch), in
-/// pair order, each with its searches prepared.
+/// pair order, each with its searches prepared, or with the contacts it keeps: a pair of
+/// rigid frames at rest ([`still_pairs`]; only the searched pairs' surfaces are prepared).
 fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> {
     let h = input.layer.thickness_m;
-    let pairs = broad::pairs_in_reach(bc, h, input.dt);
-    prepare::surfaces_in_reach(bc, input, &pairs);
+    let mut pairs = broad::pairs_in_reach(bc, h, input.dt);
+    // Pairs at rest keep their contacts; the rest are searched.
     let mut out = Vec::with_capacity(pairs.len());
+    pairs.retain(|&(a, b, lo, hi)| {
+        let still = STILL_LAYERS * h;
+        let moved = bc.step_motion[a] + bc.step_motion[b];
+        let frames = |b: usize| bc.frame_bodies.get(b) == Some(&true);
+        let kept = (bc.step > 2 && !bc.still_off && bc.constrains(a, b) && frames(a) && frames(b))
+            .then(|| bc.still.take((a, b), bc.step, moved, still))
+            .flatten();
+        let Some((found, stencils)) = kept else {
+            return true;
+        };
+        out.push(PairSearches {
+            a,
+            b,
+            lo,
+            hi,
+            h: h * CONSTRAINT_REACH,
+            front: None,
+            searches: [None, None],
+            kept: true,
+            found,
+            stencils,
+        });
+        false
+    });
+    bc.kept_pairs = out.len();
+    prepare::surfaces_in_reach(bc, input, &pairs);
     for (a, b, lo, hi) in pairs {
         // Constraints need contacts only a little ahead of the gap they keep: a thinner
         // reach looks at a quarter of the faces around a resting sample. The first pass
@@ -648,10 +696,12 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             h: layer.thickness_m,
             front,
             searches,
+            kept: false,
             found: Vec::new(),
             stencils: None,
         });
     }
+    out.sort_by_key(|p| (p.a, p.b));
     grids_for_lists(bc, &out);
     out
 }
@@ -690,6 +740,9 @@ fn search_pairs(
     let parts = (Chunks::new(pairs, 1), Chunks::new(scratch, 1));
     team::for_each(parts, |_, (pair, scratch)| {
         let pair = &mut pair[0];
+        if pair.kept {
+            return;
+        }
         pair.found.clear();
         for search in pair.searches.iter_mut().flatten() {
             detect::search_pair(bc, (surface, positions), search, &mut pair.found);

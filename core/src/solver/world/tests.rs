@@ -354,6 +354,57 @@ fn contacts_left_out_in_front_would_not_have_acted() {
     assert!(touched > 100, "{touched} steps with constraints");
 }
 
+#[test]
+fn resting_rigid_pairs_keep_their_contacts_and_rest_where_they_would() {
+    // Three wooden boxes (held rigid) stacked 1 cm apart, each shifted 2 cm, dropped onto the
+    // floor. Stepped with the contacts of pairs at rest kept from pass to pass and with every
+    // pair searched each pass: most passes keep the pairs' contacts once the stack has
+    // landed, and the boxes end within 2 µm of where the other run puts them (0.14 µm).
+    let m = Material::preset("wood").unwrap();
+    let mut kept = World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(0.03, &m, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    });
+    for i in 0..3 {
+        let (x, y) = (0.02 * i as f64, 0.005 + 0.31 * i as f64);
+        let corners = ([x, y, 0.0], [x + 0.3, y + 0.3, 0.3]);
+        add_box_body(
+            &mut kept,
+            &format!("box{i}"),
+            corners,
+            10,
+            &m,
+            Vector3::zeros(),
+        );
+    }
+    let mut searched = kept.clone();
+    searched.body_contact.still_off = true;
+    let dt = kept.choose_substeps(1.0 / 24.0).dt;
+    let steps = (1.5 / dt) as usize;
+    let mut keeping = 0;
+    for step in 0..steps {
+        kept.step(dt);
+        searched.step(dt);
+        assert_eq!(searched.body_contact.kept_pairs, 0);
+        if step > steps / 2 {
+            keeping += usize::from(kept.body_contact.kept_pairs == 2);
+        }
+    }
+    assert!(
+        keeping > steps / 4,
+        "{keeping} of the last {} passes kept both pairs",
+        steps / 2
+    );
+    let apart = kept.nodes.position.iter().zip(&searched.nodes.position);
+    let worst = apart.map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(worst < 2e-6, "{worst} m apart");
+}
+
 /// Add a box `(lo, hi)` at `cells` cells along its longest side, moving at `velocity`, with
 /// its contact samples and collision surface (it touches the world's other bodies).
 fn add_box_body(

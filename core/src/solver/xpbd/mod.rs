@@ -264,10 +264,15 @@ impl Model {
     pub(crate) fn build(world: &mut World) -> Model {
         let kept = kept_nodes(world);
         let glue = Glue::build(world, &kept);
-        Model {
+        let model = Model {
             glue,
             ..Model::build_solids(world, &kept)
-        }
+        };
+        // The bodies that move as one frame: their pairs keep their contacts while at rest.
+        world.body_contact.frame_bodies = (0..world.bodies.len())
+            .map(|b| model.held.holds(world, b) || world.rigid.iter().any(|r| r.body == b))
+            .collect();
+        model
     }
 
     fn build_solids(world: &World, kept: &[u32]) -> Model {
