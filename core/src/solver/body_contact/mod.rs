@@ -531,12 +531,6 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     let samples = (input.surface, &input.nodes.position[..]);
     search_pairs(bc, samples, &mut searches, &mut edge_scratch);
     bc.edge_scratch = edge_scratch;
-    for pair in searches.iter().filter(|p| !p.kept) {
-        if bc.constrains(pair.a, pair.b) {
-            (bc.still).keep((pair.a, pair.b), bc.step, &pair.found, &pair.stencils);
-        }
-    }
-    bc.still.forget_older(bc.step);
     // Hertz's episodes end for the pairs out of reach (the others' end in `respond`).
     if bc.model == ContactModel::Hertz {
         end_hertz_episodes(bc, &searches);
@@ -544,7 +538,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     for pair in searches {
         let (a, b) = (pair.a, pair.b);
         bc.contacts.clear();
-        bc.contacts.extend(pair.found);
+        bc.contacts.extend_from_slice(&pair.found);
         for search in pair.searches.into_iter().flatten() {
             detect::end_pair(bc, search);
         }
@@ -558,7 +552,12 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             *layer,
             dt,
         );
+        if bc.constrains(a, b) {
+            let contacts = (pair.found, pair.stencils);
+            bc.still.keep((a, b), bc.step, contacts, !pair.kept);
+        }
     }
+    bc.still.forget_older(bc.step);
     for a in 0..n_bodies {
         for c in 0..bc.colliders.len() {
             let (alo, ahi) = bc.boxes[a];

@@ -60,16 +60,17 @@ impl StillPairs {
         }
         kept.moved = total;
         kept.step = step;
-        Some((kept.found.clone(), kept.stencils.clone()))
+        Some((std::mem::take(&mut kept.found), kept.stencils.take()))
     }
 
-    /// Keep the contacts pass `step` found for `pair`.
+    /// Keep the contacts of `pair` in pass `step`: those its search `found` (from then on,
+    /// its motion counts from 0), or those [`Self::take`] gave it back (`searched` false).
     pub(super) fn keep(
         &mut self,
         pair: (usize, usize),
         step: u64,
-        found: &[Contact],
-        stencils: &Option<Stencils>,
+        (found, stencils): (Vec<Contact>, Option<Stencils>),
+        searched: bool,
     ) {
         let at = match self.kept.binary_search_by_key(&pair, |k| k.pair) {
             Ok(at) => at,
@@ -84,10 +85,10 @@ impl StillPairs {
         };
         let kept = &mut self.kept[at];
         kept.step = step;
-        kept.moved = 0.0;
-        kept.found.clear();
-        kept.found.extend_from_slice(found);
-        kept.stencils.clone_from(stencils);
+        if searched {
+            kept.moved = 0.0;
+        }
+        (kept.found, kept.stencils) = (found, stencils);
     }
 
     /// Forget the pairs that pass `step` neither searched nor reused.
@@ -108,16 +109,19 @@ mod tests {
             still.take((0, 1), 1, 0.0, 1.0).is_none(),
             "nothing kept yet"
         );
-        still.keep((0, 1), 1, &[], &stencils);
-        still.keep((2, 3), 1, &[], &None);
-        assert!(still.take((0, 1), 2, 0.4, 1.0).is_some());
-        assert!(still.take((0, 1), 3, 0.4, 1.0).is_some());
+        still.keep((0, 1), 1, (Vec::new(), stencils.clone()), true);
+        still.keep((2, 3), 1, (Vec::new(), None), true);
+        let back = still.take((0, 1), 2, 0.4, 1.0).expect("kept");
+        still.keep((0, 1), 2, back, false);
+        let back = still.take((0, 1), 3, 0.4, 1.0).expect("kept");
+        assert_eq!(back.1, stencils, "given back as it was kept");
+        still.keep((0, 1), 3, back, false);
         // 1.2 in all since the search: searched again.
         assert!(still.take((0, 1), 4, 0.4, 1.0).is_none());
         // (2, 3) was neither searched nor kept in pass 2: not kept in pass 3.
         assert!(still.take((2, 3), 3, 0.0, 1.0).is_none());
         // A pass that neither searched nor kept a pair forgets it.
-        still.keep((0, 1), 4, &[], &stencils);
+        still.keep((0, 1), 4, (Vec::new(), stencils), true);
         still.forget_older(4);
         assert!(still.take((2, 3), 5, 0.0, 1.0).is_none());
         assert!(still.take((0, 1), 5, 0.0, 1.0).is_some());
