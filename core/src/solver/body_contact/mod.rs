@@ -231,9 +231,10 @@ pub struct BodyContact {
     normals: Vec<Vector3<f64>>,
     /// The contacts of constrained pairs at rest, kept from pass to pass.
     still: still_pairs::StillPairs,
-    /// Per body: whether it moves as one rigid frame (held or rigid, set by the XPBD step);
-    /// only pairs of such bodies keep their contacts ([`still_pairs`]).
-    pub(crate) frame_bodies: Vec<bool>,
+    /// Per body: whether it moves as one rigid frame (held or rigid, set by the XPBD step:
+    /// [`Self::set_frame_bodies`]); only pairs of such bodies keep their contacts
+    /// ([`still_pairs`]).
+    frame_bodies: Vec<bool>,
     /// Search every pair in every pass (for tests: keeping the contacts of pairs at rest
     /// changes where they rest by less than their motion allows).
     pub(crate) still_off: bool,
@@ -242,6 +243,14 @@ pub struct BodyContact {
 }
 
 impl BodyContact {
+    /// Which bodies move as one rigid frame (per body; the XPBD step's model says, each time
+    /// it is built for the bodies as they are). The contacts kept so far are forgotten: the
+    /// bodies may have changed.
+    pub(crate) fn set_frame_bodies(&mut self, frames: Vec<bool>) {
+        self.frame_bodies = frames;
+        self.still = still_pairs::StillPairs::default();
+    }
+
     /// Whether a body can touch another body or a static collider (a lone body's mesh
     /// touches nothing here).
     pub(crate) fn touches_others(&self) -> bool {
@@ -316,6 +325,8 @@ impl BodyContact {
             return;
         }
         self.built_for = (bodies.len(), surface.len());
+        // Kept contacts name bodies and nodes by index: they may have changed.
+        self.still = still_pairs::StillPairs::default();
         self.points = vec![0..0; bodies.len()];
         let mut i = 0;
         while i < surface.len() {

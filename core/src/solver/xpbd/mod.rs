@@ -269,9 +269,10 @@ impl Model {
             ..Model::build_solids(world, &kept)
         };
         // The bodies that move as one frame: their pairs keep their contacts while at rest.
-        world.body_contact.frame_bodies = (0..world.bodies.len())
+        let frames = (0..world.bodies.len())
             .map(|b| model.held.holds(world, b) || world.rigid.iter().any(|r| r.body == b))
             .collect();
+        world.body_contact.set_frame_bodies(frames);
         model
     }
 
