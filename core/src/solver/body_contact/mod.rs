@@ -145,7 +145,6 @@ pub(crate) use constraint::BodyConstraint;
 use constraint::Stencils;
 use detect::*;
 use mesh::{refine, BodyMesh};
-use still_pairs::STILL_LAYERS;
 
 /// A body's node box: its lowest and highest corner, m.
 pub(crate) type NodeBox = (Vector3<f64>, Vector3<f64>);
@@ -652,31 +651,7 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
     let h = input.layer.thickness_m;
     let mut pairs = broad::pairs_in_reach(bc, h, input.dt);
     // Pairs at rest keep their contacts; the rest are searched.
-    let mut out = Vec::with_capacity(pairs.len());
-    pairs.retain(|&(a, b, lo, hi)| {
-        let still = STILL_LAYERS * h;
-        let moved = bc.step_motion[a] + bc.step_motion[b];
-        let frames = |b: usize| bc.frame_bodies.get(b) == Some(&true);
-        let kept = (bc.step > 2 && !bc.still_off && bc.constrains(a, b) && frames(a) && frames(b))
-            .then(|| bc.still.take((a, b), bc.step, moved, still))
-            .flatten();
-        let Some((found, stencils)) = kept else {
-            return true;
-        };
-        out.push(PairSearches {
-            a,
-            b,
-            lo,
-            hi,
-            h: h * CONSTRAINT_REACH,
-            front: None,
-            searches: [None, None],
-            kept: true,
-            found,
-            stencils,
-        });
-        false
-    });
+    let mut out = still_pairs::take_kept(bc, &mut pairs, h);
     bc.kept_pairs = out.len();
     prepare::surfaces_in_reach(bc, input, &pairs);
     for (a, b, lo, hi) in pairs {

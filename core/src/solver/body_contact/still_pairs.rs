@@ -17,7 +17,8 @@
 //! had found far away ([`super::neighbours::take`]), so none is missed.
 
 use super::constraint::Stencils;
-use super::Contact;
+use super::prepare::PairInReach;
+use super::{BodyContact, Contact, PairSearches, CONSTRAINT_REACH};
 
 /// How far, in contact layer thicknesses, the nodes of a pair may move in all (both bodies'
 /// farthest node, added over the passes) before its kept contacts are searched again. Well
@@ -27,6 +28,43 @@ use super::Contact;
 /// 3 cm cells) few pairs were kept and the stack took as long as before, at 1e-3 10 % less
 /// time, at 0.01 40 % less, at 0.05 no less than at 0.01.
 pub(super) const STILL_LAYERS: f64 = 0.01;
+
+/// The pairs of `pairs` (in reach in this pass, layer thickness `h`) that keep their
+/// contacts, taken out of `pairs`: pairs of rigid frames ([`BodyContact::frame_bodies`])
+/// whose contacts are constraints, from the third pass on (the first two decide which pairs
+/// are constrained and make their stencils).
+pub(super) fn take_kept(
+    bc: &mut BodyContact,
+    pairs: &mut Vec<PairInReach>,
+    h: f64,
+) -> Vec<PairSearches> {
+    let mut out = Vec::with_capacity(pairs.len());
+    pairs.retain(|&(a, b, lo, hi)| {
+        let frames = |b: usize| bc.frame_bodies.get(b) == Some(&true);
+        if bc.step <= 2 || bc.still_off || !bc.constrains(a, b) || !frames(a) || !frames(b) {
+            return true;
+        }
+        let moved = bc.step_motion[a] + bc.step_motion[b];
+        let Some((found, stencils)) = bc.still.take((a, b), bc.step, moved, STILL_LAYERS * h)
+        else {
+            return true;
+        };
+        out.push(PairSearches {
+            a,
+            b,
+            lo,
+            hi,
+            h: h * CONSTRAINT_REACH,
+            front: None,
+            searches: [None, None],
+            kept: true,
+            found,
+            stencils,
+        });
+        false
+    });
+    out
+}
 
 /// The contacts of one pair's last search, and how far its bodies have moved since.
 #[derive(Debug, Clone, Default, PartialEq)]
