@@ -275,15 +275,7 @@ fn neighbour_lists_find_the_contacts_a_grid_search_finds() {
         ([1.0, 0.3, 0.0], [1.2, 0.5, 0.2], down),
         ([1.21, 0.3, 0.0], [1.41, 0.5, 0.2], down),
     ];
-    let mut lists = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(0.1, &m, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
+    let mut lists = xpbd_over_floor(0.1, &m);
     for (k, (lo, hi, v)) in boxes.into_iter().enumerate() {
         add_box_body(&mut lists, &format!("box{k}"), (lo, hi), 4, &m, v);
     }
@@ -311,16 +303,7 @@ fn contacts_left_out_in_front_would_not_have_acted() {
     // faces within the constraints' reach all the way down. Stepped with the contacts beyond
     // `CONSTRAINT_FRONT` left out and with every one kept as a constraint: the same bits.
     let m = Material::preset("rubber").unwrap();
-    let settings = WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(0.2 / 3.0, &m, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    };
-    let mut kept = World::new(settings);
+    let mut kept = xpbd_over_floor(0.2 / 3.0, &m);
     for (i, layer) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)] {
         let x = i as f64 * 0.21;
         let y = 0.05 + layer as f64 * 0.21;
@@ -361,15 +344,7 @@ fn resting_rigid_pairs_keep_their_contacts_and_rest_where_they_would() {
     // pair searched each pass: most passes keep the pairs' contacts once the stack has
     // landed, and the boxes end within 2 µm of where the other run puts them (0.14 µm).
     let m = Material::preset("wood").unwrap();
-    let mut kept = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(0.03, &m, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
+    let mut kept = xpbd_over_floor(0.03, &m);
     for i in 0..3 {
         let (x, y) = (0.02 * i as f64, 0.005 + 0.31 * i as f64);
         let corners = ([x, y, 0.0], [x + 0.3, y + 0.3, 0.3]);
@@ -403,6 +378,20 @@ fn resting_rigid_pairs_keep_their_contacts_and_rest_where_they_would() {
     let apart = kept.nodes.position.iter().zip(&searched.nodes.position);
     let worst = apart.map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(worst < 2e-6, "{worst} m apart");
+}
+
+/// An XPBD world over a floor at height 0, its contact layer the default for cells of `cell`
+/// metres of `material` (friction 0.4).
+fn xpbd_over_floor(cell: f64, material: &Material) -> World {
+    World::new(WorldSettings {
+        planes: vec![Plane {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }],
+        layer: WorldSettings::default_layer(cell, material, 0.4),
+        integrator: Integrator::Xpbd,
+        ..WorldSettings::default()
+    })
 }
 
 /// Add a box `(lo, hi)` at `cells` cells along its longest side, moving at `velocity`, with
@@ -456,15 +445,7 @@ fn sized_pools_are_built_once() {
 #[test]
 fn a_frame_taken_again_from_its_copy_is_the_frame_run_afresh() {
     let jelly = Material::preset("jelly").unwrap();
-    let mut world = World::new(WorldSettings {
-        planes: vec![Plane {
-            normal: Vector3::y(),
-            offset: 0.0,
-        }],
-        layer: WorldSettings::default_layer(0.05, &jelly, 0.4),
-        integrator: Integrator::Xpbd,
-        ..WorldSettings::default()
-    });
+    let mut world = xpbd_over_floor(0.05, &jelly);
     let (low, high) = (
         ([-0.2, 0.01, -0.2], [0.2, 0.31, 0.2]),
         ([-0.1, 0.36, -0.1], [0.1, 0.56, 0.1]),
