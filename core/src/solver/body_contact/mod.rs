@@ -237,6 +237,9 @@ pub struct BodyContact {
     /// Search every pair in every pass (for tests: keeping the contacts of pairs at rest
     /// changes where they rest by less than their motion allows).
     pub(crate) still_off: bool,
+    /// One sweep of the cells a substep whatever the contacts (for tests: the XPBD step's
+    /// second sweep behind body–body contacts, `xpbd::sweep_behind_contacts`, left out).
+    pub(crate) one_sweep: bool,
     /// How many pairs kept their contacts in the last pass.
     pub(crate) kept_pairs: usize,
 }

@@ -98,14 +98,15 @@ pub(crate) struct Touch {
 }
 
 impl BodyContacts<'_> {
-    /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and adding
-    /// their corrections to `shift`, and what separating contacts leave to `rest`. The held
+    /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and in
+    /// `by_bodies` (the elastic ones) and adding their corrections to `shift`, and what
+    /// separating contacts leave to `rest`. The held
     /// and rigid bodies' `frames` (indexed per node by `frame_of`, empty without such bodies)
     /// move as rigid bodies ([`RigidFrame`]), applied to their nodes at the end.
     pub(crate) fn solve(
         &self,
         x: &mut [V3],
-        (moved, shift, rest): (&mut [bool], &mut [V3], &mut [V3]),
+        (moved, by_bodies, shift, rest): (&mut [bool], &mut [bool], &mut [V3], &mut [V3]),
         (frames, frame_of): (&mut [RigidFrame], &[u32]),
     ) -> Touch {
         let mut out = Touch::default();
@@ -210,6 +211,7 @@ impl BodyContacts<'_> {
                 x[k] += step;
                 shift[k] += step;
                 moved[k] = true;
+                by_bodies[k] = true;
             }
             for (side, point) in sides.iter().zip(&points) {
                 if side.0 != NO_FRAME && side.1 != 0.0 {

@@ -163,6 +163,56 @@ fn multiplier(value: &L, denominator: &L, active: &Mask) -> L {
     })
 }
 
+/// Which sweep of a substep a solve is, and the multipliers it carries between sweeps.
+/// XPBD's multiplier `λ` of each constraint starts at zero every substep; a sweep after the
+/// first takes up where the last left it, `Δλ = −(C + α̃ λ) / (Σ w |∇C|² + α̃)`, so that a
+/// second sweep converges the substep's solve further instead of stiffening the material (a
+/// second sweep that starts again from `λ = 0` makes a lone node's sag `r/(1+r)` of its
+/// material's, `r = α̃/(w + α̃)`).
+pub(crate) enum Sweep<'a, T> {
+    /// The substep's only sweep: nothing is kept.
+    Lone,
+    /// The first of two: each constraint's `Δλ` is written to its slot.
+    First(&'a mut T),
+    /// A later sweep: each constraint reads its slot and adds its `Δλ`.
+    Again(&'a mut T),
+}
+
+impl<'a, T> Sweep<'a, T> {
+    /// The slots, and whether this is a later sweep (`None`: a lone one).
+    pub(crate) fn slots(self) -> Option<(&'a mut T, bool)> {
+        match self {
+            Sweep::Lone => None,
+            Sweep::First(t) => Some((t, false)),
+            Sweep::Again(t) => Some((t, true)),
+        }
+    }
+}
+
+/// The multipliers of a group's constraints: the volume, then the shear at each of the four
+/// corners, a lane each.
+pub(crate) type Multipliers = [L; 5];
+
+/// `C + α̃ λ` for a sweep after the first; `C` otherwise.
+#[inline(always)]
+fn residual(value: &L, alpha: &L, slot: &Option<(&mut L, bool)>) -> L {
+    match slot {
+        Some((lambda, true)) => map(|l| value[l] + alpha[l] * lambda[l]),
+        _ => *value,
+    }
+}
+
+/// Keep a constraint's step `dl` in its slot: written by the first sweep, added to by a
+/// later one.
+#[inline(always)]
+fn keep(slot: Option<(&mut L, bool)>, dl: &L) {
+    match slot {
+        Some((lambda, true)) => *lambda = map(|l| lambda[l] + dl[l]),
+        Some((lambda, false)) => *lambda = *dl,
+        None => {}
+    }
+}
+
 /// The parameters of a group of cube cells (one per lane) of the same corner parity.
 #[derive(Debug, Clone)]
 pub(crate) struct Cubes {
@@ -218,15 +268,15 @@ pub(crate) fn highest_node(nodes: &[[u32; 8]]) -> u32 {
 // every call and the standard scene ran 11 % slower.
 #[inline(never)]
 #[allow(unsafe_code)]
-pub(crate) unsafe fn solve_cubes(from: &Gather, p: &Cubes) {
+pub(crate) unsafe fn solve_cubes(from: &Gather, p: &Cubes, sweep: Sweep<Multipliers>) {
     #[cfg(target_arch = "x86_64")]
     if avx_available() {
         // SAFETY: `avx_available` found the CPU feature the function is compiled for; the
         // nodes are the caller's alone.
-        return unsafe { solve_cubes_avx(from, p) };
+        return unsafe { solve_cubes_avx(from, p, sweep) };
     }
     // SAFETY: the caller's.
-    unsafe { solve_cubes_here(from, p) }
+    unsafe { solve_cubes_here(from, p, sweep) }
 }
 
 /// Whether this CPU has AVX (checked once).
@@ -240,14 +290,14 @@ fn avx_available() -> bool {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 #[allow(unsafe_code)]
-unsafe fn solve_cubes_avx(from: &Gather, p: &Cubes) {
+unsafe fn solve_cubes_avx(from: &Gather, p: &Cubes, sweep: Sweep<Multipliers>) {
     // SAFETY: the caller's.
-    unsafe { solve_cubes_here(from, p) }
+    unsafe { solve_cubes_here(from, p, sweep) }
 }
 
 #[inline(always)]
 #[allow(unsafe_code)]
-unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
+unsafe fn solve_cubes_here(from: &Gather, p: &Cubes, sweep: Sweep<Multipliers>) {
     let cells = from.nodes.len();
     assert!(
         (1..=LANES).contains(&cells),
@@ -268,10 +318,17 @@ unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
     };
     let wk = from.masses;
     let start = x;
-    volume(&mut x, wk, p);
+    let [mut volume_slot, mut shear_slots @ ..] = match sweep.slots() {
+        Some((lambda, again)) => {
+            let [v, a, b, c, d] = lambda.each_mut();
+            [v, a, b, c, d].map(|slot| Some((slot, again)))
+        }
+        None => [None, None, None, None, None],
+    };
+    volume(&mut x, wk, p, volume_slot.take());
     let corners = if p.odd { [1, 2, 4, 7] } else { [0, 3, 5, 6] };
-    for c in corners {
-        shear(&mut x, wk, c, p);
+    for (c, slot) in corners.into_iter().zip(&mut shear_slots) {
+        shear(&mut x, wk, c, p, slot.take());
     }
     for c in 0..8 {
         barrier(&mut x, wk, c, p);
@@ -286,12 +343,13 @@ unsafe fn solve_cubes_here(from: &Gather, p: &Cubes) {
 
 /// `V/V_0 − 1` over the six Kuhn tets, in the closed form of [`super::cells::cube_volume`].
 #[inline(always)]
-fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes) {
+fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes, slot: Option<(&mut L, bool)>) {
     let grad = six_volume_gradient(x);
     let six_v = grad.diagonal.dot(&grad.loop_area);
     // The gradients below are 6 V's: a sixth of them is V's.
     let q = map(|l| p.inv_h[l] * p.inv_h[l] * p.inv_h[l] * (1.0 / 6.0));
     let value = map(|l| six_v[l] * q[l] - 1.0);
+    let value = residual(&value, &p.hydro, &slot);
     let ends = grad.loop_area.dot(&grad.loop_area);
     let mut denominator = map(|l| p.hydro[l] + (w[0][l] + w[7][l]) * ends[l] * q[l] * q[l]);
     for (k, g) in grad.side.iter().enumerate() {
@@ -301,6 +359,7 @@ fn volume(x: &mut [V; 8], w: &[L; 8], p: &Cubes) {
     }
     let active = mask(|l| p.hydro[l].is_finite() & (value[l].abs() > NOISE_FLOOR));
     let dl = multiplier(&value, &denominator, &active);
+    keep(slot, &dl);
     let dl = map(|l| dl[l] * q[l]);
     step(&mut x[0], &grad.loop_area.neg(), &w[0], &dl);
     step(&mut x[7], &grad.loop_area, &w[7], &dl);
@@ -353,7 +412,15 @@ fn signs(c: usize, inv_h: &L) -> [L; 3] {
 /// Project corner `c`'s constraint of value `value` whose gradient by column k of F is
 /// `g[k]` (already times `s_k`).
 #[inline(always)]
-fn project(x: &mut [V; 8], w: &[L; 8], c: usize, g: [V; 3], value: &L, alpha: &L, on: &Mask) {
+fn project(
+    x: &mut [V; 8],
+    w: &[L; 8],
+    (c, g): (usize, [V; 3]),
+    (value, alpha): (&L, &L),
+    on: &Mask,
+    slot: Option<(&mut L, bool)>,
+) {
+    let value = &residual(value, alpha, &slot);
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let apex = g[0].add(&g[1]).add(&g[2]).neg();
     let mut denominator = map(|l| alpha[l]);
@@ -364,6 +431,7 @@ fn project(x: &mut [V; 8], w: &[L; 8], c: usize, g: [V; 3], value: &L, alpha: &L
         denominator = map(|l| denominator[l] + w[nb[k]][l] * n[l]);
     }
     let dl = multiplier(value, &denominator, on);
+    keep(slot, &dl);
     step(&mut x[c], &apex, &w[c], &dl);
     for k in 0..3 {
         step(&mut x[nb[k]], &g[k], &w[nb[k]], &dl);
@@ -372,7 +440,7 @@ fn project(x: &mut [V; 8], w: &[L; 8], c: usize, g: [V; 3], value: &L, alpha: &L
 
 /// The shear constraint `sqrt(Σ W_ij E_ij²)` of corner `c`.
 #[inline(always)]
-fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
+fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes, slot: Option<(&mut L, bool)>) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = signs(c, &p.inv_h);
     let f: [V; 3] = three!(|k| x[nb[k]].sub(&x[c]).scale(&s[k]));
@@ -415,7 +483,7 @@ fn shear(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
             .scale(&inv)
             .scale(&s[k])
     });
-    project(x, w, c, g, &value, &p.dev, &on);
+    project(x, w, (c, g), (&value, &p.dev), &on, slot);
 }
 
 /// The collapse barrier `det F_c ≥ COLLAPSE_J` of corner `c` (hard).
@@ -433,7 +501,7 @@ fn barrier(x: &mut [V; 8], w: &[L; 8], c: usize, p: &Cubes) {
     let cof = [first, f[2].cross(&f[0]), f[0].cross(&f[1])];
     let g: [V; 3] = three!(|k| cof[k].scale(&s[k]));
     let value = map(|l| j[l] - COLLAPSE_J as S);
-    project(x, w, c, g, &value, &[0.0; LANES], &on);
+    project(x, w, (c, g), (&value, &[0.0; LANES]), &on, None);
 }
 
 /// The lanes against [`super::cells`]'s scalar path, at rest, and in short groups.
@@ -498,7 +566,7 @@ mod tests {
         // SAFETY: one thread, cells with their own nodes.
         #[allow(unsafe_code)]
         unsafe {
-            solve_cubes(&from, cubes)
+            solve_cubes(&from, cubes, Sweep::Lone)
         };
         x.chunks(8).map(|c| std::array::from_fn(|k| c[k])).collect()
     }
@@ -578,7 +646,7 @@ mod tests {
             let mut largest_move = 0.0f64;
             for (l, cell) in cells.iter().enumerate() {
                 let mut scalar = *cell;
-                solve_cell(&mut scalar, &w[l], shape, alphas, &axis[l]);
+                solve_cell(&mut scalar, &w[l], shape, alphas, &axis[l], Sweep::Lone);
                 for k in 0..8 {
                     largest_move = largest_move.max((scalar[k] - cell[k]).norm());
                     let miss = (lanes[l][k] - scalar[k]).norm();
@@ -590,6 +658,86 @@ mod tests {
                 "the cells hardly moved: {largest_move}"
             );
         }
+    }
+
+    /// Two sweeps, the second taking up the first's multipliers, through the lanes and
+    /// through the scalar path: the same moves to a millionth of a cell; and the second
+    /// sweep's moves are not those of a sweep that starts afresh.
+    #[test]
+    fn the_lanes_carry_the_multipliers_as_the_scalar_path_does() {
+        let h = 0.1;
+        let LaneCells {
+            cells,
+            w,
+            axis,
+            alphas: (hydro, dev),
+        } = lane_cells(h, V3::zeros());
+        let cubes = Cubes {
+            inv_h: [(1.0 / h) as f32; LANES],
+            hydro: [hydro as f32; LANES],
+            dev: [dev as f32; LANES],
+            axis_root: std::array::from_fn(|i| std::array::from_fn(|l| axis[l][i] as f32)),
+            odd: true,
+        };
+        let nodes: Vec<[u32; 8]> = (0..LANES)
+            .map(|l| std::array::from_fn(|k| (8 * l + k) as u32))
+            .collect();
+        let wn: Vec<f64> = w.iter().flatten().copied().collect();
+        let lanes = |carry: bool| {
+            let mut x: Vec<V3> = cells.iter().flatten().copied().collect();
+            let from = Gather {
+                nodes: &nodes,
+                highest: highest_node(&nodes),
+                x: &Disjoint::new(&mut x),
+                masses: &mass_lanes(&nodes, &wn),
+            };
+            let mut lambda = [[0.0; LANES]; 5];
+            // SAFETY: one thread, cells with their own nodes.
+            #[allow(unsafe_code)]
+            unsafe {
+                solve_cubes(&from, &cubes, Sweep::First(&mut lambda));
+                let again = if carry {
+                    Sweep::Again(&mut lambda)
+                } else {
+                    Sweep::Lone
+                };
+                solve_cubes(&from, &cubes, again);
+            }
+            x
+        };
+        let (carried, afresh) = (lanes(true), lanes(false));
+        let shape = Shape::Cube {
+            inv_h: 1.0 / h,
+            odd: true,
+        };
+        let mut apart = 0.0f64;
+        for (l, cell) in cells.iter().enumerate() {
+            let mut scalar = *cell;
+            let mut lambda = [0.0; 5];
+            let alphas = (hydro, dev);
+            solve_cell(
+                &mut scalar,
+                &w[l],
+                shape,
+                alphas,
+                &axis[l],
+                Sweep::First(&mut lambda),
+            );
+            solve_cell(
+                &mut scalar,
+                &w[l],
+                shape,
+                alphas,
+                &axis[l],
+                Sweep::Again(&mut lambda),
+            );
+            for k in 0..8 {
+                let miss = (carried[8 * l + k] - scalar[k]).norm();
+                assert!(miss < 1e-6 * h, "cell {l} node {k} misses by {miss}");
+                apart = apart.max((carried[8 * l + k] - afresh[8 * l + k]).norm());
+            }
+        }
+        assert!(apart > 1e-3 * h, "carried and afresh {apart} apart");
     }
 
     /// A group of three cells moves its cells' nodes as those cells' lanes of a full group

@@ -35,7 +35,9 @@
 //! local copies of their eight nodes and written back in cell order, so any thread count gives
 //! the same bits.
 
-use super::lanes::{highest_node, mass_lanes, solve_cubes, Cubes, Gather, MassLanes, LANES};
+use super::lanes::{
+    highest_node, mass_lanes, solve_cubes, Cubes, Gather, MassLanes, Multipliers, Sweep, LANES,
+};
 use crate::material::Material;
 use crate::solver::team::{self, Disjoint, Tasks};
 use nalgebra::{Matrix3, Vector3};
@@ -119,6 +121,30 @@ pub(crate) struct CellSet {
     pub wave_speed: f64,
     /// Smallest `sqrt(E/ρ)` of any cell's material, m/s (0 without cells).
     pub slowest_wave: f64,
+    /// The multipliers a [`Pass::First`] kept for a [`Pass::Again`]: per cell of the scalar
+    /// path (volume and shear; a tet's in the first two), and per lane group.
+    cell_multipliers: Vec<[f64; 5]>,
+    lane_multipliers: Vec<Multipliers>,
+}
+
+/// Which sweep of a substep [`CellSet::solve`] is: the only one, the first of two, or the
+/// second, which takes up the first's multipliers ([`Sweep`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Pass {
+    Lone,
+    First,
+    Again,
+}
+
+impl Pass {
+    /// This pass over one cell's or group's multipliers.
+    fn of<T>(self, lambda: &mut T) -> Sweep<'_, T> {
+        match self {
+            Pass::Lone => Sweep::Lone,
+            Pass::First => Sweep::First(lambda),
+            Pass::Again => Sweep::Again(lambda),
+        }
+    }
 }
 
 /// Display-surface points grouped by their cell (see [`CellSet::point_groups`]).
@@ -443,13 +469,23 @@ impl CellSet {
 
     /// One Gauss–Seidel sweep over every cell's constraints (colour by colour), moving the
     /// positions `x` with inverse masses `w` (0: the node does not move), for a substep of
-    /// `dt` seconds.
-    pub(crate) fn solve(&mut self, x: &mut [V3], w: &[f64], dt: f64) {
+    /// `dt` seconds. A [`Pass::First`] keeps each constraint's multiplier for a
+    /// [`Pass::Again`] in the same substep, which takes them up ([`Sweep`]); that one's `w`
+    /// may hold more nodes still than the first's (its lanes' masses are made from it, not
+    /// kept).
+    pub(crate) fn solve(&mut self, x: &mut [V3], w: &[f64], dt: f64, pass: Pass) {
         let inv_dt2 = 1.0 / (dt * dt);
         if self.lanes_dt != dt || self.lanes.len() != self.groups.len() {
             self.make_lanes(dt);
         }
-        self.refresh_lane_masses(w);
+        if pass != Pass::Again {
+            self.refresh_lane_masses(w);
+        }
+        self.cell_multipliers.resize(self.nodes.len(), [0.0; 5]);
+        self.lane_multipliers
+            .resize(self.groups.len(), [[0.0; LANES]; 5]);
+        let cell_multipliers = Disjoint::new(&mut self.cell_multipliers);
+        let lane_multipliers = Disjoint::new(&mut self.lane_multipliers);
         for (colour, range) in self.colours.iter().enumerate() {
             let nodes = &self.nodes[range.clone()];
             let shape = &self.shape[range.clone()];
@@ -458,14 +494,29 @@ impl CellSet {
             let axis = &self.axis_root[range.clone()];
             let xs = Disjoint::new(&mut *x);
             // SAFETY (every `get`, `set` and `solve_cubes` of this colour): a node belongs
-            // to one cell of the colour, so no two tasks read or write the same one; the
-            // serial colour's cells, which may share nodes, run one after the other here.
+            // to one cell of the colour, so no two tasks read or write the same one, and a
+            // cell or a group to one task; the serial colour's cells, which may share nodes,
+            // run one after the other here.
             #[allow(unsafe_code)]
             let solve_one = |j: usize| {
                 let mut local = nodes[j].map(|n| unsafe { xs.get(n as usize) });
                 let wl = nodes[j].map(|n| w[n as usize]);
                 let alphas = (hydro[j] * inv_dt2, dev[j] * inv_dt2);
-                solve_cell(&mut local, &wl, shape[j], alphas, &axis[j]);
+                let cell = range.start + j;
+                if pass == Pass::Lone {
+                    solve_cell(&mut local, &wl, shape[j], alphas, &axis[j], Sweep::Lone);
+                } else {
+                    let mut lambda = unsafe { cell_multipliers.get(cell) };
+                    solve_cell(
+                        &mut local,
+                        &wl,
+                        shape[j],
+                        alphas,
+                        &axis[j],
+                        pass.of(&mut lambda),
+                    );
+                    unsafe { cell_multipliers.set(cell, lambda) };
+                }
                 for (k, &n) in nodes[j].iter().enumerate() {
                     unsafe { xs.set(n as usize, local[k]) };
                 }
@@ -474,10 +525,20 @@ impl CellSet {
                 (0..nodes.len()).for_each(solve_one);
                 continue;
             }
-            let solve_group = |((group, lanes), masses): ((&Range<usize>, &Option<_>), _)| {
+            let first_group = self.colour_groups[colour].start;
+            #[allow(unsafe_code)]
+            let solve_group = |g: usize| {
+                let group = &self.groups[g];
                 let (first, end) = (group.start - range.start, group.end - range.start);
-                let Some((cubes, highest)) = lanes else {
+                let Some((cubes, highest)) = &self.lanes[g] else {
                     return (first..end).for_each(solve_one);
+                };
+                let held;
+                let masses = if pass == Pass::Again {
+                    held = mass_lanes(&nodes[first..end], w);
+                    &held
+                } else {
+                    &self.lane_masses[g]
                 };
                 let from = Gather {
                     nodes: &nodes[first..end],
@@ -485,24 +546,19 @@ impl CellSet {
                     x: &xs,
                     masses,
                 };
-                #[allow(unsafe_code)]
-                unsafe {
-                    solve_cubes(&from, cubes)
-                };
+                if pass == Pass::Lone {
+                    return unsafe { solve_cubes(&from, cubes, Sweep::Lone) };
+                }
+                let mut lambda = unsafe { lane_multipliers.get(g) };
+                unsafe { solve_cubes(&from, cubes, pass.of(&mut lambda)) };
+                unsafe { lane_multipliers.set(g, lambda) };
             };
             // A group takes about a microsecond and a half: hand out GROUPS_PER_TASK of them
             // at a time (a 16³ lattice's colour, 53 groups, is 14 tasks).
-            let groups = &self.groups[self.colour_groups[colour].clone()];
-            let lanes = &self.lanes[self.colour_groups[colour].clone()];
-            let masses = &self.lane_masses[self.colour_groups[colour].clone()];
-            team::for_each(Tasks(groups.len().div_ceil(GROUPS_PER_TASK)), |task, ()| {
-                let first = task * GROUPS_PER_TASK;
-                let mine = first..(first + GROUPS_PER_TASK).min(groups.len());
-                groups[mine.clone()]
-                    .iter()
-                    .zip(&lanes[mine.clone()])
-                    .zip(&masses[mine])
-                    .for_each(solve_group);
+            let groups = self.colour_groups[colour].len();
+            team::for_each(Tasks(groups.div_ceil(GROUPS_PER_TASK)), |task, ()| {
+                let first = first_group + task * GROUPS_PER_TASK;
+                (first..(first + GROUPS_PER_TASK).min(first_group + groups)).for_each(solve_group);
             });
         }
     }
@@ -538,6 +594,7 @@ impl CellSet {
                         self.shape[j],
                         (f64::INFINITY, f64::INFINITY),
                         &unused,
+                        Sweep::Lone,
                     );
                     for (k, &n) in cell.iter().enumerate() {
                         #[allow(unsafe_code)]
@@ -675,7 +732,14 @@ impl Element {
 
     /// Move the element's nodes to reduce constraint `value` with gradient `∂C/∂F` = `p`
     /// (XPBD with the multiplier reset every substep: one Newton step of the constraint).
-    fn project(&self, x: &mut [V3; 8], w: &[f64; 8], value: f64, p: &Matrix3<f64>, alpha: f64) {
+    fn project(
+        &self,
+        x: &mut [V3; 8],
+        w: &[f64; 8],
+        (value, p): (f64, &Matrix3<f64>),
+        alpha: f64,
+        slot: Slot,
+    ) {
         let h = p * self.m.transpose();
         let g = [
             -(h.column(0) + h.column(1) + h.column(2)),
@@ -690,7 +754,8 @@ impl Element {
         if !(denominator > 0.0 && denominator.is_finite()) {
             return;
         }
-        let dl = -value / denominator;
+        let dl = -residual(value, alpha, &slot) / denominator;
+        keep(slot, dl);
         for (&s, g) in self.slots.iter().zip(&g) {
             x[s] += g * (w[s] * dl);
         }
@@ -735,16 +800,22 @@ pub(super) fn solve_cell(
     shape: Shape,
     alphas: (f64, f64),
     axis_root: &[f64; 3],
+    sweep: Sweep<[f64; 5]>,
 ) {
     let (hydro, dev) = alphas;
+    let [mut volume_slot, mut shear_slots @ ..] = match sweep.slots() {
+        Some((lambda, again)) => lambda.each_mut().map(|slot| Some((slot, again))),
+        None => [None, None, None, None, None],
+    };
     match shape {
         Shape::Cube { inv_h, odd } => {
             if hydro.is_finite() {
-                solve_cube_volume(x, w, inv_h * inv_h * inv_h, hydro);
+                let slot = volume_slot.take();
+                solve_cube_volume(x, w, inv_h * inv_h * inv_h, hydro, slot);
             }
             if dev.is_finite() {
-                for c in corners(odd) {
-                    solve_corner(x, w, c, inv_h, dev, axis_root);
+                for (c, slot) in corners(odd).into_iter().zip(&mut shear_slots) {
+                    solve_corner(x, w, (c, inv_h), dev, axis_root, slot.take());
                 }
             }
             for c in 0..8 {
@@ -756,20 +827,22 @@ pub(super) fn solve_cell(
                 let f = element.gradient(x);
                 let (value, cofactor) = volume_ratio(&f);
                 if hydro.is_finite() {
-                    element.project(x, w, value - 1.0, &cofactor, hydro);
+                    let slot = volume_slot.take();
+                    element.project(x, w, (value - 1.0, &cofactor), hydro, slot);
                 }
                 if value < COLLAPSE_J {
                     let f = element.gradient(x);
                     let (value, cofactor) = volume_ratio(&f);
                     if value < COLLAPSE_J {
-                        element.project(x, w, value - COLLAPSE_J, &cofactor, 0.0);
+                        element.project(x, w, (value - COLLAPSE_J, &cofactor), 0.0, None);
                     }
                 }
                 let f = element.gradient(x);
                 let e = green_strain(&f);
                 let value = e.norm();
                 if value > 1e-14 {
-                    element.project(x, w, value, &(f * e / value), dev);
+                    let slot = shear_slots[0].take();
+                    element.project(x, w, (value, &(f * e / value)), dev, slot);
                 }
             });
             // The apex's duplicate slots follow it (they are written back too).
@@ -787,10 +860,10 @@ pub(super) fn solve_cell(
 fn solve_corner(
     x: &mut [V3; 8],
     w: &[f64; 8],
-    c: usize,
-    inv_h: f64,
+    (c, inv_h): (usize, f64),
     dev: f64,
     axis_root: &[f64; 3],
+    slot: Slot,
 ) {
     let nb = [c ^ 1, c ^ 2, c ^ 4];
     let s = corner_signs(c, inv_h);
@@ -803,7 +876,7 @@ fn solve_corner(
     };
     // Move the corner's four nodes against constraint `value` whose gradient with respect to
     // column k of F is p[k].
-    let project = |x: &mut [V3; 8], value: f64, p: [V3; 3], alpha: f64| {
+    let project = |x: &mut [V3; 8], value: f64, p: [V3; 3], alpha: f64, slot: Slot| {
         let g = [p[0] * s[0], p[1] * s[1], p[2] * s[2]];
         let g_apex = -(g[0] + g[1] + g[2]);
         let denominator = alpha
@@ -814,7 +887,8 @@ fn solve_corner(
         if !(denominator > 0.0 && denominator.is_finite()) {
             return;
         }
-        let dl = -value / denominator;
+        let dl = -residual(value, alpha, &slot) / denominator;
+        keep(slot, dl);
         x[c] += g_apex * (w[c] * dl);
         for k in 0..3 {
             x[nb[k]] += g[k] * (w[nb[k]] * dl);
@@ -845,7 +919,7 @@ fn solve_corner(
             (f[0] * we[(0, 1)] + f[1] * we[(1, 1)] + f[2] * we[(2, 1)]) * inv,
             (f[0] * we[(0, 2)] + f[1] * we[(1, 2)] + f[2] * we[(2, 2)]) * inv,
         ];
-        project(x, value, p, dev);
+        project(x, value, p, dev, slot);
     }
 }
 
@@ -931,7 +1005,7 @@ pub(super) fn cube_volume(x: &[V3; 8]) -> (f64, [V3; 8]) {
 /// The cell's volumetric constraint `V/V_0 − 1` (`inv_volume` = 1/V_0, `alpha` its compliance
 /// over Δt²), over all eight nodes.
 #[inline(always)]
-fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64) {
+fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64, slot: Slot) {
     let (volume, grad) = cube_volume(x);
     let value = volume * inv_volume - 1.0;
     let mut denominator = alpha;
@@ -941,9 +1015,35 @@ fn solve_cube_volume(x: &mut [V3; 8], w: &[f64; 8], inv_volume: f64, alpha: f64)
     if !(denominator > 0.0 && denominator.is_finite()) {
         return;
     }
-    let dl = -value / denominator * inv_volume;
+    let dl = -residual(value, alpha, &slot) / denominator;
+    keep(slot, dl);
+    let dl = dl * inv_volume;
     for k in 0..8 {
         x[k] += grad[k] * (w[k] * dl);
+    }
+}
+
+/// A constraint's carried multiplier and whether this is a sweep after the first
+/// ([`Sweep::slots`]; `None`: a lone sweep).
+type Slot<'a> = Option<(&'a mut f64, bool)>;
+
+/// `C + α̃ λ` for a sweep after the first; `C` otherwise.
+#[inline(always)]
+fn residual(value: f64, alpha: f64, slot: &Slot) -> f64 {
+    match slot {
+        Some((lambda, true)) => value + alpha * **lambda,
+        _ => value,
+    }
+}
+
+/// Keep a constraint's step `dl` in its slot: written by the first sweep, added to by a
+/// later one.
+#[inline(always)]
+fn keep(slot: Slot, dl: f64) {
+    match slot {
+        Some((lambda, true)) => *lambda += dl,
+        Some((lambda, false)) => *lambda = dl,
+        None => {}
     }
 }
 
@@ -960,232 +1060,4 @@ fn green_strain(f: &Matrix3<f64>) -> Matrix3<f64> {
 }
 
 #[cfg(test)]
-pub(super) mod tests {
-    use super::*;
-
-    /// A cube cell of edge 0.1 m at rest, corner `c` at its bits `(x, y, z)`.
-    pub(in crate::solver::xpbd) fn unit_cube() -> [V3; 8] {
-        std::array::from_fn(|c| {
-            V3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64) * 0.1
-        })
-    }
-
-    fn one_cell(material: &Material) -> CellSet {
-        let mut set = CellSet::default();
-        set.push(CellInput {
-            nodes: std::array::from_fn(|c| c as u32),
-            rest: unit_cube(),
-            material,
-            stiffness_scale: 1.0,
-            axis_scale: [1.0; 3],
-        });
-        set.finish(8);
-        set
-    }
-
-    #[test]
-    fn a_cell_at_rest_or_rotated_does_not_move() {
-        let rubber = Material::preset("rubber").unwrap();
-        let mut set = one_cell(&rubber);
-        let rot = nalgebra::UnitQuaternion::from_scaled_axis(V3::new(0.3, 0.9, -0.2));
-        let mut x: Vec<V3> = unit_cube().iter().map(|p| rot * p + V3::x()).collect();
-        let before = x.clone();
-        for _ in 0..20 {
-            set.solve(&mut x, &[1.0; 8], 1e-3);
-        }
-        // The lanes solve in single precision: within 1e-7 of the 0.1 m edge (a strain that
-        // is not rotation-invariant would move it by a tenth of that edge).
-        for (a, b) in x.iter().zip(&before) {
-            assert!((a - b).norm() < 1e-8, "{a} vs {b}");
-        }
-    }
-
-    #[test]
-    fn an_inverted_cell_is_restored() {
-        let jelly = Material::preset("jelly").unwrap();
-        let mut set = one_cell(&jelly);
-        // Push the top face through the bottom one.
-        let mut x: Vec<V3> = unit_cube().to_vec();
-        for c in [2, 3, 6, 7] {
-            x[c].y = -0.05;
-        }
-        assert!(crate::solver::volume::cell_volume(&std::array::from_fn(|c| c as u32), &x) < 0.0);
-        for _ in 0..200 {
-            set.solve(&mut x, &[1.0; 8], 1.0 / 240.0);
-        }
-        let cell: [u32; 8] = std::array::from_fn(|c| c as u32);
-        let v = crate::solver::volume::cell_volume(&cell, &x);
-        assert!((v - 1e-3).abs() < 1e-5, "volume {v}");
-    }
-
-    /// The closed-form Kuhn volume and gradient against the six tets summed one by one, on
-    /// cells sheared, squashed, turned and inverted.
-    #[test]
-    fn a_cubes_closed_form_volume_is_its_six_tets() {
-        let mut rng = fastrand::Rng::with_seed(5);
-        for case in 0..200 {
-            let spread = if case < 100 { 0.03 } else { 0.2 };
-            let x: [V3; 8] = std::array::from_fn(|c| {
-                let jitter = V3::new(rng.f64(), rng.f64(), rng.f64()) - V3::repeat(0.5);
-                unit_cube()[c] + jitter * spread + V3::new(3.0, -1.0, 2.0)
-            });
-            let mut volume = 0.0;
-            let mut grad = [V3::zeros(); 8];
-            for [a, b, c, d] in crate::solver::volume::TETS {
-                let (e1, e2, e3) = (x[b] - x[a], x[c] - x[a], x[d] - x[a]);
-                let (g1, g2, g3) = (e2.cross(&e3), e3.cross(&e1), e1.cross(&e2));
-                volume += e1.dot(&g1) / 6.0;
-                grad[b] += g1 / 6.0;
-                grad[c] += g2 / 6.0;
-                grad[d] += g3 / 6.0;
-                grad[a] -= (g1 + g2 + g3) / 6.0;
-            }
-            let (closed, closed_grad) = cube_volume(&x);
-            assert!(
-                (closed - volume).abs() < 1e-15,
-                "case {case}: {closed} vs {volume}"
-            );
-            for k in 0..8 {
-                let e = (closed_grad[k] - grad[k]).norm();
-                assert!(
-                    e < 1e-14,
-                    "case {case}, node {k}: {} vs {}",
-                    closed_grad[k],
-                    grad[k]
-                );
-            }
-        }
-    }
-
-    /// A cube cell's energy, written out per corner, against the general element path (F as
-    /// edges times the element's map, the Green strain as `(FᵀF − I)/2`): deformed cells,
-    /// both parities, anisotropic.
-    #[test]
-    fn a_cubes_energy_is_the_element_paths() {
-        let jelly = Material::preset("jelly").unwrap();
-        let mut rng = fastrand::Rng::with_seed(11);
-        for (odd, axis) in [(false, [1.0; 3]), (true, [1.0, 2.0, 0.5])] {
-            let mut set = one_cell(&jelly);
-            set.shape[0] = Shape::Cube { inv_h: 10.0, odd };
-            set.axis_root[0] = axis;
-            let x: Vec<V3> = (unit_cube().iter())
-                .map(|p| p + V3::new(rng.f64() - 0.5, rng.f64() - 0.5, rng.f64() - 0.5) * 0.04)
-                .collect();
-            let local: [V3; 8] = std::array::from_fn(|k| x[k]);
-            let (kh, kd) = (inverse(set.hydro_alpha[0]), inverse(set.dev_alpha[0]));
-            let c_h = cube_volume(&local).0 * 1000.0 - 1.0;
-            let mut reference = 0.5 * kh * c_h * c_h;
-            for_each_element(set.shape[0], |element| {
-                let e = green_strain(&element.gradient(&local));
-                let weighted = Matrix3::from_fn(|i, k| e[(i, k)] * axis[i] * axis[k]);
-                reference += 0.5 * kd * e.dot(&weighted);
-            });
-            let energy = set.cell_energy(0, &x);
-            assert!(
-                (energy - reference).abs() <= 1e-12 * reference,
-                "{energy} vs {reference}"
-            );
-        }
-    }
-
-    /// The cells `keep` picks of an `n`×`n`×`n` lattice of unit cubes, finished.
-    fn lattice_set(n: usize, keep: impl Fn(usize, usize, usize) -> bool) -> CellSet {
-        let rubber = Material::preset("rubber").unwrap();
-        let mut set = CellSet::default();
-        let side = n + 1;
-        let id = |i: usize, j: usize, k: usize| (i + side * (j + side * k)) as u32;
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    if !keep(i, j, k) {
-                        continue;
-                    }
-                    let corner = |c: usize| (i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
-                    set.push(CellInput {
-                        nodes: std::array::from_fn(|c| {
-                            let (a, b, d) = corner(c);
-                            id(a, b, d)
-                        }),
-                        rest: std::array::from_fn(|c| {
-                            let (a, b, d) = corner(c);
-                            V3::new(a as f64, b as f64, d as f64)
-                        }),
-                        material: &rubber,
-                        stiffness_scale: 1.0,
-                        axis_scale: [1.0; 3],
-                    });
-                }
-            }
-        }
-        set.finish(side * side * side);
-        set
-    }
-
-    /// The lanes' inverse masses follow the ones a substep passes: a node pinned between two
-    /// sweeps stays where it is, and the sweep is the one a fresh set makes.
-    #[test]
-    fn the_lanes_take_the_masses_of_each_sweep() {
-        let n = 4;
-        let side = n + 1;
-        let squashed = |x: &mut Vec<V3>| {
-            for (i, p) in x.iter_mut().enumerate() {
-                let k = i / (side * side);
-                *p = V3::new(
-                    (i % side) as f64,
-                    ((i / side) % side) as f64,
-                    k as f64 * 0.8,
-                );
-            }
-        };
-        let mut x = Vec::new();
-        x.resize(side * side * side, V3::zeros());
-        squashed(&mut x);
-        let mut w = vec![1.0; x.len()];
-        let mut kept = lattice_set(n, |_, _, _| true);
-        kept.solve(&mut x.clone(), &w, 1e-3);
-        let pinned = 2 + side * (2 + side * 2);
-        w[pinned] = 0.0;
-        let mut y = x.clone();
-        kept.solve(&mut x, &w, 1e-3);
-        lattice_set(n, |_, _, _| true).solve(&mut y, &w, 1e-3);
-        assert_eq!(x, y);
-        assert_eq!(x[pinned], V3::new(2.0, 2.0, 1.6));
-        assert_ne!(x[pinned + 1], V3::new(3.0, 2.0, 1.6));
-    }
-
-    #[test]
-    fn lattice_cells_take_eight_colours() {
-        let set = lattice_set(3, |_, _, _| true);
-        assert_eq!(set.colours.len(), 8);
-        assert_eq!(set.serial_colour, None);
-    }
-
-    /// A sparse lattice, whose colours hold cubes of both corner parities: each colour's
-    /// lane groups cover its cells once, in order, each group one parity and at most
-    /// [`LANES`] cells, and a parity's run splits into as few groups as it can.
-    #[test]
-    fn lane_groups_keep_to_one_parity() {
-        let set = lattice_set(7, |i, j, k| (i * 7 + j * 3 + k * 5) % 4 != 0);
-        let parity = |j: usize| match set.shape[j] {
-            Shape::Cube { odd, .. } => odd,
-            Shape::Tet { .. } => panic!("a lattice has cubes only"),
-        };
-        let mut mixed_colours = 0;
-        for (colour, range) in set.colours.iter().enumerate() {
-            let groups = &set.groups[set.colour_groups[colour].clone()];
-            let mut next = range.start;
-            for g in groups {
-                assert_eq!(g.start, next, "colour {colour}");
-                assert!(!g.is_empty() && g.len() <= LANES);
-                assert!(g.clone().all(|j| parity(j) == parity(g.start)));
-                next = g.end;
-            }
-            assert_eq!(next, range.end, "colour {colour}");
-            let odd = range.clone().filter(|&j| parity(j)).count();
-            let even = range.len() - odd;
-            mixed_colours += usize::from(odd > 0 && even > 0);
-            assert_eq!(groups.len(), odd.div_ceil(LANES) + even.div_ceil(LANES));
-        }
-        assert!(mixed_colours > 0, "no colour holds both parities");
-    }
-}
+pub(super) mod tests;
