@@ -552,6 +552,20 @@ mod tests {
 
     /// `cells` (each its own eight nodes) solved as one lane group; their nodes after.
     fn run_lanes(cells: &[[V3; 8]], w: &[[f64; 8]], cubes: &Cubes) -> Vec<[V3; 8]> {
+        // SAFETY: one thread, cells with their own nodes.
+        #[allow(unsafe_code)]
+        run_lanes_with(cells, w, |from| unsafe {
+            solve_cubes(from, cubes, Sweep::Lone)
+        })
+    }
+
+    /// `cells` (each its own eight nodes) gathered as one lane group for `solve`; their
+    /// nodes after.
+    fn run_lanes_with(
+        cells: &[[V3; 8]],
+        w: &[[f64; 8]],
+        solve: impl FnOnce(&Gather),
+    ) -> Vec<[V3; 8]> {
         let nodes: Vec<[u32; 8]> = (0..cells.len())
             .map(|l| std::array::from_fn(|k| (8 * l + k) as u32))
             .collect();
@@ -563,32 +577,29 @@ mod tests {
             x: &Disjoint::new(&mut x),
             masses: &mass_lanes(&nodes, &wn),
         };
-        // SAFETY: one thread, cells with their own nodes.
-        #[allow(unsafe_code)]
-        unsafe {
-            solve_cubes(&from, cubes, Sweep::Lone)
-        };
+        solve(&from);
         x.chunks(8).map(|c| std::array::from_fn(|k| c[k])).collect()
+    }
+
+    /// The lane parameters of [`lane_cells`]' cells `which` (odd corners).
+    fn lane_group(h: f64, cells: &LaneCells, which: &std::ops::Range<usize>) -> Cubes {
+        let (hydro, dev) = cells.alphas;
+        let axis = |l: usize| cells.axis[which.start + l.min(which.len() - 1)];
+        Cubes {
+            inv_h: [(1.0 / h) as f32; LANES],
+            hydro: [hydro as f32; LANES],
+            dev: [dev as f32; LANES],
+            axis_root: std::array::from_fn(|i| std::array::from_fn(|l| axis(l)[i] as f32)),
+            odd: true,
+        }
     }
 
     /// The cells `which` of [`lane_cells`] solved as one lane group; every cell's nodes after.
     fn solve_lanes(h: f64, at: V3, which: std::ops::Range<usize>) -> Vec<[V3; 8]> {
-        let LaneCells {
-            mut cells,
-            w,
-            axis,
-            alphas: (hydro, dev),
-        } = lane_cells(h, at);
-        let cubes = Cubes {
-            inv_h: [(1.0 / h) as f32; LANES],
-            hydro: [hydro as f32; LANES],
-            dev: [dev as f32; LANES],
-            axis_root: std::array::from_fn(|i| {
-                std::array::from_fn(|l| axis[which.start + l.min(which.len() - 1)][i] as f32)
-            }),
-            odd: true,
-        };
-        let solved = run_lanes(&cells[which.clone()], &w[which.clone()], &cubes);
+        let group = lane_cells(h, at);
+        let cubes = lane_group(h, &group, &which);
+        let mut cells = group.cells;
+        let solved = run_lanes(&cells[which.clone()], &group.w[which.clone()], &cubes);
         cells[which].copy_from_slice(&solved);
         cells
     }
@@ -666,44 +677,27 @@ mod tests {
     #[test]
     fn the_lanes_carry_the_multipliers_as_the_scalar_path_does() {
         let h = 0.1;
+        let group = lane_cells(h, V3::zeros());
+        let cubes = lane_group(h, &group, &(0..LANES));
         let LaneCells {
             cells,
             w,
             axis,
-            alphas: (hydro, dev),
-        } = lane_cells(h, V3::zeros());
-        let cubes = Cubes {
-            inv_h: [(1.0 / h) as f32; LANES],
-            hydro: [hydro as f32; LANES],
-            dev: [dev as f32; LANES],
-            axis_root: std::array::from_fn(|i| std::array::from_fn(|l| axis[l][i] as f32)),
-            odd: true,
-        };
-        let nodes: Vec<[u32; 8]> = (0..LANES)
-            .map(|l| std::array::from_fn(|k| (8 * l + k) as u32))
-            .collect();
-        let wn: Vec<f64> = w.iter().flatten().copied().collect();
+            alphas,
+        } = group;
         let lanes = |carry: bool| {
-            let mut x: Vec<V3> = cells.iter().flatten().copied().collect();
-            let from = Gather {
-                nodes: &nodes,
-                highest: highest_node(&nodes),
-                x: &Disjoint::new(&mut x),
-                masses: &mass_lanes(&nodes, &wn),
-            };
-            let mut lambda = [[0.0; LANES]; 5];
             // SAFETY: one thread, cells with their own nodes.
             #[allow(unsafe_code)]
-            unsafe {
-                solve_cubes(&from, &cubes, Sweep::First(&mut lambda));
+            run_lanes_with(&cells, &w, |from| unsafe {
+                let mut lambda = [[0.0; LANES]; 5];
+                solve_cubes(from, &cubes, Sweep::First(&mut lambda));
                 let again = if carry {
                     Sweep::Again(&mut lambda)
                 } else {
                     Sweep::Lone
                 };
-                solve_cubes(&from, &cubes, again);
-            }
-            x
+                solve_cubes(from, &cubes, again);
+            })
         };
         let (carried, afresh) = (lanes(true), lanes(false));
         let shape = Shape::Cube {
@@ -714,27 +708,18 @@ mod tests {
         for (l, cell) in cells.iter().enumerate() {
             let mut scalar = *cell;
             let mut lambda = [0.0; 5];
-            let alphas = (hydro, dev);
-            solve_cell(
-                &mut scalar,
-                &w[l],
-                shape,
-                alphas,
-                &axis[l],
-                Sweep::First(&mut lambda),
-            );
-            solve_cell(
-                &mut scalar,
-                &w[l],
-                shape,
-                alphas,
-                &axis[l],
-                Sweep::Again(&mut lambda),
-            );
+            for again in [false, true] {
+                let sweep = if again {
+                    Sweep::Again(&mut lambda)
+                } else {
+                    Sweep::First(&mut lambda)
+                };
+                solve_cell(&mut scalar, &w[l], shape, alphas, &axis[l], sweep);
+            }
             for k in 0..8 {
-                let miss = (carried[8 * l + k] - scalar[k]).norm();
+                let miss = (carried[l][k] - scalar[k]).norm();
                 assert!(miss < 1e-6 * h, "cell {l} node {k} misses by {miss}");
-                apart = apart.max((carried[8 * l + k] - afresh[8 * l + k]).norm());
+                apart = apart.max((carried[l][k] - afresh[l][k]).norm());
             }
         }
         assert!(apart > 1e-3 * h, "carried and afresh {apart} apart");
