@@ -147,14 +147,13 @@ pub(crate) struct Model {
     /// once passed.
     separated_by: Option<f64>,
     inv_mass: Vec<f64>,
-    /// `inv_mass` with the nodes a contact moved held (0): the second sweep's
-    /// ([`sweep_behind_contacts`]).
+    /// `inv_mass` with the nodes the floor, walls, colliders or a capsule moved held (0): the
+    /// second sweep's ([`sweep_behind_contacts`]).
     behind_contacts: Vec<f64>,
     /// Per node: moved by a rigid contact this substep.
     moved: Vec<bool>,
     /// Per node: moved by a contact between bodies this substep (an elastic body's node).
     by_bodies: Vec<bool>,
-
     /// Per node: how far the rigid contacts moved it this substep, m (see
     /// [`Model::elastic_energy`]); `contact_shifted` while any is not zero.
     contact_shift: Vec<V3>,
@@ -388,7 +387,6 @@ impl Model {
             behind_contacts: Vec::new(),
             moved: vec![false; n],
             by_bodies: vec![false; n],
-
             contact_shift: vec![V3::zeros(); n],
             contact_shifted: false,
             chunk_contact: vec![(0.0, V3::zeros(), 0.0); n.div_ceil(PAR_CHUNK)],
