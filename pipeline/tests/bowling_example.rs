@@ -81,7 +81,10 @@ fn the_bowling_example_throws_bounces_rolls_hits_the_pins_and_opens_in_blender()
         .collect();
     assert_eq!(pins.len(), 3, "{report}");
     // The pin that moved most was knocked (5 cm or more) and deformed: the distances between its
-    // vertices changed more than on the pin that moved least, which only sags under gravity.
+    // vertices changed more than on the pin that moved least, which only sags under gravity
+    // (by 1.41 times with one sweep of the cells a substep, 1.26 times with the second sweep
+    // behind body–body contacts, `xpbd::sweep_behind_contacts`, which carries the ball's push
+    // into the pin within the substep: 8.2 mm against 6.5 mm).
     let by_move = |p: &&serde_json::Value| p["max_move"].as_f64().unwrap();
     let knocked = pins
         .iter()
@@ -94,7 +97,7 @@ fn the_bowling_example_throws_bounces_rolls_hits_the_pins_and_opens_in_blender()
     assert!(by_move(knocked) > 0.05, "no pin moved 5 cm: {report}");
     let strain = |p: &&serde_json::Value| p["max_distance_change"].as_f64().unwrap();
     assert!(
-        strain(knocked) > 0.004 && strain(knocked) > 1.3 * strain(still),
+        strain(knocked) > 0.004 && strain(knocked) > 1.2 * strain(still),
         "the knocked pin did not deform beyond the resting one's sag: {report}"
     );
 }
