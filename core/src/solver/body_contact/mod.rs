@@ -85,7 +85,7 @@ const CONSTRAINT_REACH: f64 = 0.75;
 /// It is neither a constraint nor in the contact log (the surfaces do not touch), and a
 /// sample known to be outside that stays farther than this from every face is not searched
 /// ([`detect`]'s `pair_contacts`).
-const CONSTRAINT_FRONT: f64 = 0.25;
+pub(crate) const CONSTRAINT_FRONT: f64 = 0.25;
 
 /// How deep behind a face (in layer thicknesses) a point still touches it without a crossing
 /// in the step: deeper, the layer has already failed; the search reaches this far.
