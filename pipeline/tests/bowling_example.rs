@@ -59,9 +59,11 @@ fn the_bowling_example_throws_bounces_rolls_hits_the_pins_and_opens_in_blender()
 
     // Blender opens it: 4 mesh objects, every frame, the ball travelled, a pin was knocked
     // and deformed (distances between its vertices changed: not a rigid motion).
+    // Blender's frames start at 0 for the output's frame 1.
+    let hit_frame = (hit - 1).to_string();
     let report = last_json_line(&run_python_client(
         "bowling_blender.py",
-        &[out.to_str().unwrap()],
+        &[out.to_str().unwrap(), &hit_frame],
     ));
     assert_eq!(report["mesh_objects"], 4, "{report}");
     let frames = loaded.scene.output.frames as i64;
@@ -80,11 +82,13 @@ fn the_bowling_example_throws_bounces_rolls_hits_the_pins_and_opens_in_blender()
         .map(|o| o.1)
         .collect();
     assert_eq!(pins.len(), 3, "{report}");
-    // The pin that moved most was knocked (5 cm or more) and deformed: the distances between its
-    // vertices changed more than on the pin that moved least, which only sags under gravity
-    // (by 1.41 times with one sweep of the cells a substep, 1.26 times with the second sweep
-    // behind body–body contacts, `xpbd::sweep_behind_contacts`, which carries the ball's push
-    // into the pin within the substep: 8.2 mm against 6.5 mm).
+    // The pin that moved most was knocked (5 cm or more) and deformed: from the hit on, the
+    // distances between its vertices changed more than on the pin that moved least, which only
+    // sways on its sag. Over every frame the pins' first settling under gravity (6.8 mm in the
+    // first frames) hid the hit: the ratio was 1.41, then 1.26 with the second sweep behind
+    // body–body contacts and 1.13 with the contact passes that take back what one pass pushed
+    // too far (`xpbd::bodies`), and each step was a change in the pin's later frames. From the
+    // hit on: 6.2 mm against 4.1 mm.
     let by_move = |p: &&serde_json::Value| p["max_move"].as_f64().unwrap();
     let knocked = pins
         .iter()
@@ -95,9 +99,9 @@ fn the_bowling_example_throws_bounces_rolls_hits_the_pins_and_opens_in_blender()
         .min_by(|a, b| by_move(a).total_cmp(&by_move(b)))
         .unwrap();
     assert!(by_move(knocked) > 0.05, "no pin moved 5 cm: {report}");
-    let strain = |p: &&serde_json::Value| p["max_distance_change"].as_f64().unwrap();
+    let strain = |p: &&serde_json::Value| p["max_distance_change_from"].as_f64().unwrap();
     assert!(
-        strain(knocked) > 0.004 && strain(knocked) > 1.2 * strain(still),
+        strain(knocked) > 0.004 && strain(knocked) > 1.3 * strain(still),
         "the knocked pin did not deform beyond the resting one's sag: {report}"
     );
 }

@@ -1,12 +1,13 @@
 """Open a baked glTF in Blender and report what is in it (the bowling example's check).
 
-Usage: python bowling_blender.py FILE.glb
+Usage: python bowling_blender.py FILE.glb [FROM]
 
 Imports FILE into an empty scene, steps through every animated frame and prints one JSON line
 last: {mesh_objects: n, names: [...], frame_start, frame_end (from the imported actions),
 objects: {name: {vertices, max_move: largest displacement of a vertex from the first animated
 frame, max_distance_change: largest change of a distance between two vertices from the first
-frame (0 for a rigid motion)}}}, Blender world units.
+frame (0 for a rigid motion), max_distance_change_from: the same over the frames from FROM on
+(default: the first)}}}, Blender world units.
 """
 
 import json
@@ -26,6 +27,7 @@ def world_vertices(ob):
 
 def main():
     path = sys.argv[1]
+    since = int(sys.argv[2]) if len(sys.argv) > 2 else None
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=path)
     scene = bpy.context.scene
@@ -39,7 +41,12 @@ def main():
     scene.frame_set(start)
     first = {o.name: world_vertices(o) for o in meshes}
     objects = {
-        o.name: {"vertices": len(first[o.name]), "max_move": 0.0, "max_distance_change": 0.0}
+        o.name: {
+            "vertices": len(first[o.name]),
+            "max_move": 0.0,
+            "max_distance_change": 0.0,
+            "max_distance_change_from": 0.0,
+        }
         for o in meshes
     }
     for frame in range(start, end + 1):
@@ -51,10 +58,10 @@ def main():
             pairs = [(i, (i + 1) % n) for i in range(n)] + [(i, (i + n // 2) % n) for i in range(n)]
             rec = objects[o.name]
             rec["max_move"] = max(rec["max_move"], max((p - q).length for p, q in zip(a, b)))
-            rec["max_distance_change"] = max(
-                rec["max_distance_change"],
-                max(abs((a[i] - a[j]).length - (b[i] - b[j]).length) for i, j in pairs),
-            )
+            change = max(abs((a[i] - a[j]).length - (b[i] - b[j]).length) for i, j in pairs)
+            rec["max_distance_change"] = max(rec["max_distance_change"], change)
+            if frame >= (start if since is None else since):
+                rec["max_distance_change_from"] = max(rec["max_distance_change_from"], change)
     print(json.dumps({
         "mesh_objects": len(meshes),
         "names": [o.name for o in meshes],
