@@ -89,6 +89,8 @@ struct Done {
     inverse_mass: f64,
     /// The separation along its normal the first pass found, m.
     gap: f64,
+    /// The separation it is brought to ([`BodyContacts::target`]), m.
+    target: f64,
     /// Its normal correction in all (never below zero), m.
     normal: f64,
     /// Its friction correction in all (within μ times `normal`), m.
@@ -96,11 +98,12 @@ struct Done {
 }
 
 impl Done {
-    fn new(previous: V3, inverse_mass: f64, gap: f64) -> Self {
+    fn new(previous: V3, inverse_mass: f64, (gap, target): (f64, f64)) -> Self {
         Done {
             previous,
             inverse_mass,
             gap,
+            target,
             ..Done::default()
         }
     }
@@ -189,7 +192,7 @@ impl BodyContacts<'_> {
         // of six rubber boxes fell sooner.
         // Without held or rigid bodies, passes after the first take back what it pushed too far
         // (`settle`): each contact's push and friction are kept for them.
-        let mut done = if frames.is_empty() && CONTACT_PASSES > 1 {
+        let mut done = if frames.is_empty() {
             vec![Done::default(); self.constraints.len()]
         } else {
             Vec::new()
@@ -236,19 +239,19 @@ impl BodyContacts<'_> {
                 continue;
             }
             let gap = c.normal.dot(&d);
-            let separating = self
-                .separating
-                .is_some_and(|overlapping| stencil.iter().any(|&(k, _)| overlapping[k as usize]));
+            // Opened by `opening` at most beyond where the substep started (module docs).
+            let start = c.normal.dot(&d_prev);
             if let Some(done) = done.get_mut(i).filter(|_| !gap.is_nan()) {
-                *done = Done::new(d_prev, inverse_mass, gap);
+                *done = Done::new(d_prev, inverse_mass, (gap, self.target(start)));
             }
             if gap >= self.gap || gap.is_nan() {
                 continue;
             }
             let mut push = self.gap - gap;
-            // Opened by `opening` at most beyond where the substep started (module docs).
-            let start = c.normal.dot(&d_prev);
             let allowed = (start + self.opening - gap).clamp(0.0, push);
+            let separating = self
+                .separating
+                .is_some_and(|overlapping| stencil.iter().any(|&(k, _)| overlapping[k as usize]));
             if separating {
                 let left = c.normal * ((push - allowed) / inverse_mass);
                 for &(node, s) in stencil {
@@ -326,13 +329,7 @@ impl BodyContacts<'_> {
             let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
             let d: V3 = stencil.iter().map(|&(k, s)| x[k as usize] * s).sum();
             let gap = c.normal.dot(&d);
-            let start = c.normal.dot(&done.previous);
-            let target = if start < self.gap {
-                self.gap.min(start + self.opening)
-            } else {
-                self.gap
-            };
-            let push = (target - gap).max(-done.normal);
+            let push = (done.target - gap).max(-done.normal);
             if push == 0.0 && done.normal == 0.0 {
                 continue;
             }
@@ -348,6 +345,13 @@ impl BodyContacts<'_> {
             let marks = (&mut *moved, &mut *by_bodies, &mut *shift);
             self.apply((stencil, &[]), correction, done.inverse_mass, x, marks);
         }
+    }
+
+    /// The separation a contact whose features were `start` apart along its normal at the
+    /// substep's start is brought to: the gap, or `opening` beyond `start` where that is
+    /// nearer (module docs).
+    fn target(&self, start: f64) -> f64 {
+        self.gap.min(start + self.opening)
     }
 
     /// Move the elastic nodes of a constraint's `stencil` (those no frame moves, by
@@ -488,8 +492,7 @@ impl BodyContacts<'_> {
             if gap.is_nan() {
                 continue;
             }
-            let start = c.normal.dot(&d_prev);
-            let target = self.gap.min(start + self.opening);
+            let target = self.target(c.normal.dot(&d_prev));
             let contact = FramePairContact::new(sides, (c.normal, d_prev), target, self.friction);
             if gap < self.gap {
                 out.touched = true;
