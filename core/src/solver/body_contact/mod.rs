@@ -91,6 +91,18 @@ pub(crate) const CONSTRAINT_FRONT: f64 = 0.25;
 /// in the step: deeper, the layer has already failed; the search reaches this far.
 pub(crate) const BEHIND_LAYERS: f64 = 1.0;
 
+/// The longest edge a body's contact faces keep, in its cells: longer display triangles are
+/// halved until none is ([`mesh::refine`]), so a face's reaction lands on the cells under
+/// the contact (every point of a face lies within this of its corners), not on the corners
+/// of a coarse mesh's big triangles. Not the samples' spacing of half a cell: bisection leaves
+/// a face's triangles with their longest edge anywhere between half the limit and the limit,
+/// and at half a cell a 20 cm cube at 3 cells (6.7 cm cells) was cut into 256 triangles a
+/// face, edges of 1.8 and 2.5 cm, where 3/4 of a cell gives 128.
+/// The faces' upkeep and search is most of a pile's contact pass: 60 such cubes 1 cm apart
+/// baked 24 frames in 11.7–12.0 s instead of 14.1–14.7 s, two 30 cm rubber boxes stacked
+/// at 10 cells in 9.4 s instead of 11.7 s, and they swayed as before (docs/benchmarks.md).
+const FACE_EDGE_CELLS: f64 = 0.75;
+
 /// An edge–edge contact stands for a whole cell face (the layer's stiffness per node): two
 /// crossed edges carry their load at one point, where a face carries it over its samples.
 const EDGE_SHARE: f64 = 1.0;
@@ -1010,8 +1022,8 @@ fn hertz_n2(bc: &mut BodyContact, input: &PassInput, a: usize, b: Option<usize>,
 impl World {
     /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
     /// counter-clockwise from outside) for contact with other bodies: its vertices are
-    /// embedded in `lattice` (the body's own), triangles with an edge over half a cell refined
-    /// first. The body's contact samples (see [`World::add_contact_surface`]) touch the other
+    /// embedded in `lattice` (the body's own), triangles with an edge over
+    /// [`FACE_EDGE_CELLS`] refined first. The body's contact samples (see [`World::add_contact_surface`]) touch the other
     /// bodies' triangles and the static colliders. Call before stepping. A lattice without
     /// cells (a cage's view) cannot embed: use [`World::add_embedded_collision_surface`].
     pub fn add_collision_surface(
@@ -1024,14 +1036,15 @@ impl World {
         if lattice.cells.is_empty() {
             return;
         }
-        // Faces at the samples' spacing (half a cell), clustered like their vertices.
+        // Clustered like the samples' vertices (at half a cell's spacing), then refined.
         let sample_spacing = 0.5 * lattice.cell_size;
         let clustered = simplify::cluster_triangles(
             positions,
             triangles,
             crate::lattice::VERTEX_CLUSTER * sample_spacing,
         );
-        let (refined, refined_triangles) = refine(positions, &clustered, sample_spacing);
+        let longest = FACE_EDGE_CELLS * lattice.cell_size;
+        let (refined, refined_triangles) = refine(positions, &clustered, longest);
         let embedding = Embedding::new(lattice, &refined);
         self.register_mesh(
             body,
