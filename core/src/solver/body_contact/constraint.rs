@@ -41,6 +41,12 @@ impl Stencils {
         self.ends.push(self.entries.len() as u32);
     }
 
+    /// Empty, keeping its buffers.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+        self.ends.clear();
+    }
+
     /// Contact `k`'s stencil.
     pub fn get(&self, k: usize) -> &[(u32, f64)] {
         let start = if k == 0 { 0 } else { self.ends[k - 1] };
@@ -58,9 +64,20 @@ fn append_stencil(
     (a, b): (Feature, Feature),
 ) {
     let start = stencil.len();
-    push_feature(stencil, meshes, surface, a, 1.0);
-    push_feature(stencil, meshes, surface, b, -1.0);
-    stencil[start..].sort_unstable_by_key(|&(node, _)| node);
+    for (feature, sign) in [(a, 1.0), (b, -1.0)] {
+        push_feature(stencil, meshes, surface, feature, sign);
+    }
+    merge_nodes(stencil, start);
+}
+
+/// Sort `stencil[start..]` by node (unless it is already: a sample's cell against a face in
+/// one cell of a body after it) and sum the weights of each node into one entry.
+fn merge_nodes(stencil: &mut Vec<(u32, f64)>, start: usize) {
+    let part = &mut stencil[start..];
+    if part.windows(2).all(|w| w[0].0 < w[1].0) {
+        return;
+    }
+    part.sort_unstable_by_key(|&(node, _)| node);
     let mut kept = start;
     for i in start..stencil.len() {
         let (node, weight) = stencil[i];
@@ -103,6 +120,9 @@ impl BodyContact {
 }
 
 /// Append `feature`'s nodes and weights times `sign` to `stencil` (zero weights left out).
+/// A face's or an edge's points embedded in one cell (the same eight nodes: a face smaller
+/// than a cell often lies in one) give that cell's eight nodes once, their weights summed,
+/// not three times eight entries to sort and merge.
 fn push_feature(
     stencil: &mut Vec<(u32, f64)>,
     meshes: &[BodyMesh],
@@ -110,26 +130,38 @@ fn push_feature(
     feature: Feature,
     sign: f64,
 ) {
-    let mut push = |ids: &[u32; 8], w: &[f64; 8], scale: f64| {
+    let mut push = |ids: &[u32; 8], w: &[f64; 8]| {
         for c in 0..8 {
-            if w[c] * scale != 0.0 {
-                stencil.push((ids[c], w[c] * scale * sign));
+            if w[c] != 0.0 {
+                stencil.push((ids[c], w[c] * sign));
+            }
+        }
+    };
+    // The points `v` of a mesh at weights `s`, as one cell's where they share it.
+    let mut points = |m: &BodyMesh, v: &[u32], s: &[f64]| {
+        let ids = &m.nodes[v[0] as usize];
+        if v.iter().all(|&v| m.nodes[v as usize] == *ids) {
+            let mut w = [0.0; 8];
+            for (&v, &s) in v.iter().zip(s) {
+                let wv = &m.weights[v as usize];
+                for c in 0..8 {
+                    w[c] += wv[c] * s;
+                }
+            }
+            push(ids, &w);
+        } else {
+            for (&v, &s) in v.iter().zip(s) {
+                push(&m.nodes[v as usize], &m.weights[v as usize].map(|w| w * s));
             }
         }
     };
     match feature {
-        Feature::Point(i) => push(&surface.nodes[i], &surface.weights[i], 1.0),
+        Feature::Point(i) => push(&surface.nodes[i], &surface.weights[i]),
         Feature::Face { mesh, tri, bary } => {
             let m = &meshes[mesh];
-            for (&v, &w) in m.triangles[tri].iter().zip(&bary) {
-                push(&m.nodes[v as usize], &m.weights[v as usize], w);
-            }
+            points(m, &m.triangles[tri], &bary);
         }
-        Feature::Edge { mesh, a, b, s } => {
-            let m = &meshes[mesh];
-            push(&m.nodes[a as usize], &m.weights[a as usize], 1.0 - s);
-            push(&m.nodes[b as usize], &m.weights[b as usize], s);
-        }
+        Feature::Edge { mesh, a, b, s } => points(&meshes[mesh], &[a, b], &[1.0 - s, s]),
         Feature::Static => {}
     }
 }

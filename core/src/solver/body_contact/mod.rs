@@ -242,6 +242,10 @@ pub struct BodyContact {
     normals: Vec<Vector3<f64>>,
     /// The contacts of constrained pairs at rest, kept from pass to pass.
     still: still_pairs::StillPairs,
+    /// Buffers of contacts and stencils the pairs' searches of the last pass are done with,
+    /// for this pass's (a pile's searches found some ten thousand contacts a pass, and
+    /// growing new buffers for them every pass was a few per cent of its bake).
+    spare: Vec<(Vec<Contact>, Option<Stencils>)>,
     /// Per body: whether it moves as one rigid frame (held or rigid, set by the XPBD step:
     /// [`Self::set_frame_bodies`]); only pairs of such bodies keep their contacts
     /// ([`still_pairs`]).
@@ -579,7 +583,12 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
         );
         if bc.constrains(a, b) {
             let contacts = (pair.found, pair.stencils);
-            bc.still.keep((a, b), bc.step, contacts, !pair.kept);
+            let (mut found, mut stencils) = bc.still.keep((a, b), bc.step, contacts, !pair.kept);
+            found.clear();
+            if let Some(stencils) = stencils.as_mut() {
+                stencils.clear();
+            }
+            bc.spare.push((found, stencils));
         }
     }
     bc.still.forget_older(bc.step);
@@ -688,6 +697,7 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             detect::begin_pair(bc, &pass, (a, b), false, (lo, hi), front),
             detect::begin_pair(bc, &pass, (b, a), true, (lo, hi), front),
         ];
+        let (found, stencils) = bc.spare.pop().unwrap_or_default();
         out.push(PairSearches {
             a,
             b,
@@ -697,8 +707,8 @@ fn begin_searches(bc: &mut BodyContact, input: &PassInput) -> Vec<PairSearches> 
             front,
             searches,
             kept: false,
-            found: Vec::new(),
-            stencils: None,
+            found,
+            stencils,
         });
     }
     out.sort_by_key(|p| (p.a, p.b));
@@ -754,8 +764,9 @@ fn search_pairs(
             let least = pair.h - front;
             pair.found.retain(|c| c.depth > least);
         }
+        let mut stencils = pair.stencils.take().unwrap_or_default();
+        stencils.clear();
         pair.stencils = (bc.step > 1 && bc.constrains(pair.a, pair.b)).then(|| {
-            let mut stencils = Stencils::default();
             for c in pair.found.iter().filter(|c| c.depth > 0.0) {
                 stencils.push(bc, surface, c.a, c.b);
             }

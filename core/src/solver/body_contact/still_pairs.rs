@@ -108,13 +108,14 @@ impl StillPairs {
 
     /// Keep the contacts of `pair` in pass `step`: those its search `found` (from then on,
     /// its motion counts from 0), or those [`Self::take`] gave it back (`searched` false).
+    /// Gives back the ones it kept before (their buffers, for the next searches to reuse).
     pub(super) fn keep(
         &mut self,
         pair: (usize, usize),
         step: u64,
         (found, stencils): (Vec<Contact>, Option<Stencils>),
         searched: bool,
-    ) {
+    ) -> (Vec<Contact>, Option<Stencils>) {
         let at = match self.kept.binary_search_by_key(&pair, |k| k.pair) {
             Ok(at) => at,
             Err(at) => {
@@ -131,7 +132,9 @@ impl StillPairs {
         if searched {
             kept.moved = 0.0;
         }
+        let before = (std::mem::take(&mut kept.found), kept.stencils.take());
         (kept.found, kept.stencils) = (found, stencils);
+        before
     }
 
     /// Forget the pairs that pass `step` neither searched nor reused.
