@@ -680,17 +680,34 @@ const EDGE_END: f64 = 1e-6;
 /// pulled them together).
 const EDGE_FACING: f64 = 0.2;
 
-/// What one pair's edge–edge search writes besides its contacts: a grid over the partner's
-/// edges and the candidates of a query. Each pair's task has its own, so pairs run side by
-/// side.
+/// Up to this many of the partner's edges in a pair's region, each edge looks at all of
+/// them; more go into a grid. Display meshes of boxes and other simple parts have a few dozen
+/// edges, and building a grid over them for every pair in every pass was a tenth of a pile's
+/// contact pass (60 cubes 1 cm apart, where no edge met another).
+const EDGES_WITHOUT_GRID: usize = 64;
+
+/// What one pair's edge–edge search writes besides its contacts: the partner's edges in the
+/// region, a grid over them when there are many, and the candidates of a query. Each pair's
+/// task has its own, so pairs run side by side.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct EdgeScratch {
+    near: Vec<NearEdge>,
     grid: BoxGrid,
     candidates: Vec<u32>,
 }
 
+/// One of the partner's edges in the pair's region: its index, box, and its face's normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct NearEdge {
+    edge: u32,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+    normal: Vector3<f64>,
+}
+
 /// Edge–edge contacts of body `a`'s display edges with body `b`'s inside `[lo, hi]` at layer
-/// thickness `h`, into `out` (a grid over `b`'s edges is built in `scratch`). Only edges whose
+/// thickness `h`, into `out` (`scratch`: [`EdgeScratch`]). Each edge of `a` looks at the
+/// edges of `b` whose boxes come within the reach of its own, in their order. Only edges whose
 /// faces meet at an angle (face normals more than 30° from opposite): between parallel faces
 /// the samples' vertex–face contacts already carry the load. Both meshes must be up to date
 /// in this step ([`super::prepare`]); reads the contact state only, so pairs run side by side.
@@ -707,19 +724,33 @@ pub(super) fn detect_edges(
     };
     let (ea, eb) = (&bc.meshes[ma], &bc.meshes[mb]);
     debug_assert!(ea.is_current(bc.step) && eb.is_current(bc.step));
-    let EdgeScratch { grid, candidates } = scratch;
-    grid.build(
-        lo,
-        hi,
-        eb.mean_edge,
-        eb.edges.len(),
-        eb.edges.iter().enumerate().map(|(k, &[i, j, _])| {
-            let (p, q) = (eb.x[i as usize], eb.x[j as usize]);
-            (k as u32, p.inf(&q), p.sup(&q))
-        }),
-    );
-    if grid.is_empty() {
+    let EdgeScratch {
+        near,
+        grid,
+        candidates,
+    } = scratch;
+    near.clear();
+    for (k, &[i, j, third]) in eb.edges.iter().enumerate() {
+        let (p, q) = (eb.x[i as usize], eb.x[j as usize]);
+        let (elo, ehi) = (p.inf(&q), p.sup(&q));
+        if !boxes_apart((&elo, &ehi), (&lo, &hi)) {
+            let normal = triangle_normal(&p, &q, &eb.x[third as usize]);
+            let edge = k as u32;
+            near.push(NearEdge {
+                edge,
+                lo: elo,
+                hi: ehi,
+                normal,
+            });
+        }
+    }
+    if near.is_empty() {
         return;
+    }
+    let gridded = near.len() > EDGES_WITHOUT_GRID;
+    if gridded {
+        let boxes = near.iter().enumerate().map(|(n, e)| (n as u32, e.lo, e.hi));
+        grid.build(lo, hi, eb.mean_edge, near.len(), boxes);
     }
     let behind = BEHIND_LAYERS * h;
     let parallel = -(30f64.to_radians().cos());
@@ -733,12 +764,22 @@ pub(super) fn detect_edges(
         }
         let na = triangle_normal(&p0, &p1, &ea.x[third as usize]);
         let reach = h.max(behind);
-        grid.query(&elo.add_scalar(-reach), &ehi.add_scalar(reach), candidates);
+        let (qlo, qhi) = (elo.add_scalar(-reach), ehi.add_scalar(reach));
+        candidates.clear();
+        if gridded {
+            grid.query(&qlo, &qhi, candidates);
+            candidates.sort_unstable();
+        } else {
+            candidates.extend(0..near.len() as u32);
+        }
         let mut best: Option<(f64, Contact)> = None;
-        for &k in candidates.iter() {
-            let [i0, i1, i2] = eb.edges[k as usize];
-            let (q0, q1) = (eb.x[i0 as usize], eb.x[i1 as usize]);
-            let nb = triangle_normal(&q0, &q1, &eb.x[i2 as usize]);
+        for &n in candidates.iter() {
+            let e = &near[n as usize];
+            if boxes_apart((&e.lo, &e.hi), (&qlo, &qhi)) {
+                continue;
+            }
+            let [i0, i1, _] = eb.edges[e.edge as usize];
+            let (q0, q1, nb) = (eb.x[i0 as usize], eb.x[i1 as usize], e.normal);
             if na.dot(&nb) < parallel {
                 continue;
             }
@@ -794,6 +835,11 @@ pub(super) fn detect_edges(
             out.push(c);
         }
     }
+}
+
+/// Whether boxes `a` and `b` (each its low and high corners) are apart along an axis.
+fn boxes_apart(a: (&Vector3<f64>, &Vector3<f64>), b: (&Vector3<f64>, &Vector3<f64>)) -> bool {
+    (0..3).any(|k| a.1[k] < b.0[k] || a.0[k] > b.1[k])
 }
 
 /// Vertex–face contacts of body `a`'s samples with collider `c` inside `[lo, hi]`.
