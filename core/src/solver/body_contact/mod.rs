@@ -564,6 +564,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     if bc.model == ContactModel::Hertz {
         end_hertz_episodes(bc, &searches);
     }
+    let pairs_this_pass = searches.len();
     for pair in searches {
         let (a, b) = (pair.a, pair.b);
         bc.contacts.clear();
@@ -584,13 +585,18 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
         if bc.constrains(a, b) {
             let contacts = (pair.found, pair.stencils);
             let (mut found, mut stencils) = bc.still.keep((a, b), bc.step, contacts, !pair.kept);
-            found.clear();
-            if let Some(stencils) = stencils.as_mut() {
-                stencils.clear();
+            // A kept pair's are empty (it took its buffers back): not worth keeping.
+            if found.capacity() > 0 || stencils.is_some() {
+                found.clear();
+                if let Some(stencils) = stencils.as_mut() {
+                    stencils.clear();
+                }
+                bc.spare.push((found, stencils));
             }
-            bc.spare.push((found, stencils));
         }
     }
+    // No more than a pass's pairs can take.
+    bc.spare.truncate(pairs_this_pass);
     bc.still.forget_older(bc.step);
     for a in 0..n_bodies {
         for c in 0..bc.colliders.len() {
@@ -1034,8 +1040,9 @@ impl World {
     /// Register `body`'s display surface (`positions` in world metres at rest, `triangles`
     /// counter-clockwise from outside) for contact with other bodies: its vertices are
     /// embedded in `lattice` (the body's own), triangles with an edge over
-    /// [`FACE_EDGE_CELLS`] refined first. The body's contact samples (see [`World::add_contact_surface`]) touch the other
-    /// bodies' triangles and the static colliders. Call before stepping. A lattice without
+    /// [`FACE_EDGE_CELLS`] refined first. The body's contact samples (see
+    /// [`World::add_contact_surface`]) touch the other bodies' triangles and the static
+    /// colliders. Call before stepping. A lattice without
     /// cells (a cage's view) cannot embed: use [`World::add_embedded_collision_surface`].
     pub fn add_collision_surface(
         &mut self,
