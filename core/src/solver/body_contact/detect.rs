@@ -891,6 +891,7 @@ pub(super) fn detect_collider(
 
 #[cfg(test)]
 mod tests {
+    use super::super::mesh::refine;
     use super::*;
     use crate::shapes::{box_mesh, uv_sphere};
 
