@@ -23,8 +23,8 @@ impl World {
     /// embedded in `lattice` (the body's own), triangles with an edge over
     /// [`FACE_EDGE_CELLS`] refined first. The body's contact samples (see
     /// [`World::add_contact_surface`]) touch the other bodies' triangles and the static
-    /// colliders. Call before stepping. A lattice without
-    /// cells (a cage's view) cannot embed: use [`World::add_embedded_collision_surface`].
+    /// colliders. Call before stepping. A lattice without cells (a cage's view) cannot embed:
+    /// use [`World::add_embedded_collision_surface`].
     pub fn add_collision_surface(
         &mut self,
         body: BodyHandle,
