@@ -377,7 +377,8 @@ fn body_contact_gives_the_same_bits_on_1_and_2_threads() {
 
 /// Four rubber boxes 1 cm apart in a square on the floor, pushed into each other, big enough
 /// (1372 nodes) for the world to take two threads: the contact pass's parallel parts (the
-/// meshes' and samples' upkeep, the lists' builds, the searches) give the same bits as one.
+/// meshes' and samples' upkeep, the lists' builds, the searches, the constraints' pairs solved
+/// side by side a colour at a time) give the same bits as one.
 #[test]
 fn a_pile_gives_the_same_bits_on_1_and_2_threads() {
     let run = |threads: usize| {

@@ -172,4 +172,9 @@ impl BodyContact {
     pub(crate) fn constraints(&self) -> (&[BodyConstraint], &[(u32, f64)]) {
         (&self.constraints, &self.stencil)
     }
+
+    /// The groups of [`Self::constraints`] by colour ([`super::colours`]).
+    pub(crate) fn constraint_colours(&self) -> &super::colours::ConstraintColours {
+        &self.colours
+    }
 }

@@ -133,6 +133,7 @@ struct Contact {
 }
 
 mod broad;
+pub(crate) mod colours;
 mod constraint;
 mod detect;
 mod mesh;
@@ -182,6 +183,11 @@ pub struct BodyContact {
     constraints: Vec<BodyConstraint>,
     /// Their nodes and signed weights.
     stencil: Vec<(u32, f64)>,
+    /// The end of each body pair's constraints in `constraints`, in pair order (pairs with
+    /// none left out).
+    pair_ends: Vec<u32>,
+    /// The pairs' constraints in colours, for the step to solve side by side.
+    colours: colours::ConstraintColours,
     /// Body pairs `(lower, higher)` that were inside each other's surfaces at the first
     /// pass (an overlap within the layer, not glued): they keep the elastic layer, which
     /// parts them gently ([`crate::solver::xpbd::MAX_SEPARATION_SPEED`]), not the
@@ -490,6 +496,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     }
     bc.constraints.clear();
     bc.stencil.clear();
+    bc.pair_ends.clear();
     if !bc.any() {
         return;
     }
@@ -571,6 +578,9 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
             *layer,
             dt,
         );
+        if bc.pair_ends.last().copied().unwrap_or(0) < bc.constraints.len() as u32 {
+            bc.pair_ends.push(bc.constraints.len() as u32);
+        }
         if bc.constrains(a, b) {
             let contacts = (pair.found, pair.stencils);
             let (mut found, mut stencils) = bc.still.keep((a, b), bc.step, contacts, !pair.kept);
@@ -586,6 +596,8 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     }
     // No more than a pass's pairs can take.
     bc.spare.truncate(pairs_this_pass);
+    let constraints = (&bc.constraints[..], &bc.stencil[..]);
+    (bc.colours).build(constraints, &bc.pair_ends, nodes.position.len());
     bc.still.forget_older(bc.step);
     for a in 0..n_bodies {
         for c in 0..bc.colliders.len() {

@@ -7,8 +7,11 @@
 //! correction, else shortened by that much.
 //! The correction of the pair's separation `δ` moves node `k` by `s_k w_k δ / Σ s_j² w_j`
 //! (`w` the inverse masses), so the separation changes by exactly `δ` and momentum is
-//! conserved. Serial, in the order the pass found the contacts: the same bits on any thread
-//! count.
+//! conserved. A pair's contacts are met one after the other, in the order the pass found
+//! them; pairs that share no node side by side on the team, a colour of pairs at a time
+//! ([`ConstraintColours`]): the same bits on any thread count, and, as a colour's pairs touch
+//! different nodes, the same bits as meeting every pair in turn in its colour's order. Where a
+//! held or rigid body takes part, everything is serial in the pass's order.
 //!
 //! A contact already closer than the gap at the substep's start (found a substep late, or
 //! pressed back in by the floor under a body squeezed between it and another) stops its
@@ -50,10 +53,13 @@ use super::frame_pairs::{self, FramePairContact, Side, StaticContacts};
 use super::frames::{apply_frames, RigidFrame};
 use super::support::Support;
 use crate::collide::StaticCollider;
+use crate::solver::body_contact::colours::ConstraintColours;
 use crate::solver::body_contact::{BodyConstraint, CONSTRAINT_FRONT};
 use crate::solver::contact::Plane;
+use crate::solver::team::{self, Disjoint, Tasks};
 use crate::solver::world::SurfacePoints;
 use nalgebra::Vector3;
+use std::ops::Range;
 
 type V3 = Vector3<f64>;
 
@@ -122,6 +128,8 @@ fn clamp_length(v: V3, limit: f64) -> V3 {
 /// What the constraints read.
 pub(crate) struct BodyContacts<'a> {
     pub constraints: &'a [BodyConstraint],
+    /// Their groups by colour, for the passes without held or rigid bodies.
+    pub colours: &'a ConstraintColours,
     pub stencil: &'a [(u32, f64)],
     pub inv_mass: &'a [f64],
     /// Node positions at the substep's start.
@@ -163,6 +171,92 @@ pub(crate) struct Touch {
     pub rested: bool,
 }
 
+/// The node arrays the constraints read and write: positions, the marks of the nodes they
+/// move, their corrections, and what separating contacts leave to `rest`. A colour's tasks
+/// share them, each touching only its own constraints' stencils' nodes, which no other task
+/// of the colour touches ([`ConstraintColours`]).
+struct Nodes<'a> {
+    x: Disjoint<'a, V3>,
+    moved: Disjoint<'a, bool>,
+    by_bodies: Disjoint<'a, bool>,
+    shift: Disjoint<'a, V3>,
+    rest: Disjoint<'a, V3>,
+}
+
+// Every method's contract: no other task of the pass touches the nodes it is given.
+#[allow(unsafe_code)]
+impl Nodes<'_> {
+    /// Node `k`'s position.
+    ///
+    /// # Safety
+    /// No other task of the pass touches node `k`.
+    unsafe fn x(&self, k: usize) -> V3 {
+        // SAFETY: the caller's.
+        unsafe { self.x.get(k) }
+    }
+
+    /// `Σ s_k x_k` over `stencil`.
+    ///
+    /// # Safety
+    /// No other task of the pass touches the stencil's nodes.
+    unsafe fn separation(&self, stencil: &[(u32, f64)]) -> V3 {
+        // SAFETY: the caller's.
+        stencil
+            .iter()
+            .map(|&(k, s)| unsafe { self.x(k as usize) } * s)
+            .sum()
+    }
+
+    /// Move node `k` by `step` and mark it moved by the body contacts.
+    ///
+    /// # Safety
+    /// No other task of the pass touches node `k`.
+    unsafe fn shift_node(&self, k: usize, step: V3) {
+        // SAFETY: the caller's.
+        unsafe {
+            self.x.set(k, self.x.get(k) + step);
+            self.shift.set(k, self.shift.get(k) + step);
+            self.moved.set(k, true);
+            self.by_bodies.set(k, true);
+        }
+    }
+
+    /// Leave `by` of node `k`'s move to `rest`.
+    ///
+    /// # Safety
+    /// No other task of the pass touches node `k`.
+    unsafe fn leave_to_rest(&self, k: usize, by: V3) {
+        // SAFETY: the caller's.
+        unsafe { self.rest.set(k, self.rest.get(k) + by) }
+    }
+}
+
+/// The held and rigid bodies' part in the first pass: their frames (moved as rigid bodies,
+/// applied to their nodes at the end), per node its frame (`frame_of`), per frame what it
+/// rests on, and per frame the move its separating contacts leave to `rest`. All empty
+/// without such bodies.
+struct FrameSides<'f> {
+    frames: &'f mut [RigidFrame],
+    frame_of: &'f [u32],
+    supports: &'f [Option<Support>],
+    frame_rest: &'f mut [V3],
+}
+
+impl FrameSides<'_> {
+    fn frame(&self, k: usize) -> u32 {
+        self.frame_of.get(k).copied().unwrap_or(NO_FRAME)
+    }
+}
+
+/// `a` and `b` together: touched if either is, the deeper depth.
+fn both(a: Touch, b: Touch) -> Touch {
+    Touch {
+        touched: a.touched || b.touched,
+        depth: a.depth.max(b.depth),
+        rested: a.rested || b.rested,
+    }
+}
+
 impl BodyContacts<'_> {
     /// Solve every constraint once on `x`, marking the nodes it moves in `moved` and in
     /// `by_bodies` (the elastic ones) and adding their corrections to `shift`, and what
@@ -175,8 +269,17 @@ impl BodyContacts<'_> {
         (moved, by_bodies, shift, rest): (&mut [bool], &mut [bool], &mut [V3], &mut [V3]),
         (frames, frame_of): (&mut [RigidFrame], &[u32]),
     ) -> Touch {
+        let nodes = |x, moved, by_bodies, shift, rest| Nodes {
+            x: Disjoint::new(x),
+            moved: Disjoint::new(moved),
+            by_bodies: Disjoint::new(by_bodies),
+            shift: Disjoint::new(shift),
+            rest: Disjoint::new(rest),
+        };
+        if frames.is_empty() {
+            return self.solve_in_colours(&nodes(x, moved, by_bodies, shift, rest));
+        }
         let mut out = Touch::default();
-        let frame = |k: usize| frame_of.get(k).copied().unwrap_or(NO_FRAME);
         // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
         let mut frame_rest = vec![V3::zeros(); frames.len()];
         let mut mixed = vec![false; frames.len()];
@@ -190,114 +293,20 @@ impl BodyContacts<'_> {
         // The rest in one order: alternated every other substep, an elastic box resting on a
         // held one crept 2 mm a second (the two orders' friction did not cancel), and a stack
         // of six rubber boxes fell sooner.
-        // Without held or rigid bodies, passes after the first take back what it pushed too far
-        // (`settle`): each contact's push and friction are kept for them.
-        let mut done = if frames.is_empty() {
-            vec![Done::default(); self.constraints.len()]
-        } else {
-            Vec::new()
-        };
-        for (i, c) in self.constraints.iter().enumerate() {
-            let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
-            if between_frames(stencil, &frame) {
-                continue; // solved with the other frame pairs
-            }
-            let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
-            // Up to two sides moved as frames: (frame, summed weight, weighted point).
-            let mut sides = [(NO_FRAME, 0.0, V3::zeros()); 2];
-            for &(node, s) in stencil {
-                let k = node as usize;
-                d_prev += self.previous[k] * s;
-                let f = frame(k);
-                if f == NO_FRAME {
-                    d += x[k] * s;
-                    inverse_mass += s * s * self.inv_mass[k];
-                    continue;
-                }
-                let xk = frames[f as usize].moved(x[k]);
-                d += xk * s;
-                let slot = usize::from(sides[0].0 != NO_FRAME && sides[0].0 != f);
-                sides[slot].0 = f;
-                sides[slot].1 += s;
-                sides[slot].2 += xk * s;
-            }
-            let mut points = [V3::zeros(); 2];
-            for (side, point) in sides.iter_mut().zip(&mut points) {
-                let (f, sum, weighted) = *side;
-                if f != NO_FRAME && sum != 0.0 {
-                    *point = weighted / sum;
-                    let support = supports.get(f as usize).and_then(Option::as_ref);
-                    if support.is_some_and(|s| s.holds(*point, c.normal * sum)) {
-                        side.1 = 0.0; // it does not move (see `supports`)
-                        continue;
-                    }
-                    let w = frames[f as usize].inverse_mass_at(*point, c.normal);
-                    inverse_mass += sum * sum * w;
-                }
-            }
-            if inverse_mass <= 0.0 {
-                continue;
-            }
-            let gap = c.normal.dot(&d);
-            // Opened by `opening` at most beyond where the substep started (module docs).
-            let start = c.normal.dot(&d_prev);
-            if let Some(done) = done.get_mut(i).filter(|_| !gap.is_nan()) {
-                *done = Done::new(d_prev, inverse_mass, (gap, self.target(start)));
-            }
-            if gap >= self.gap || gap.is_nan() {
-                continue;
-            }
-            let mut push = self.gap - gap;
-            let allowed = (start + self.opening - gap).clamp(0.0, push);
-            let separating = self
-                .separating
-                .is_some_and(|overlapping| stencil.iter().any(|&(k, _)| overlapping[k as usize]));
-            if separating {
-                let left = c.normal * ((push - allowed) / inverse_mass);
-                for &(node, s) in stencil {
-                    if frame(node as usize) == NO_FRAME {
-                        rest[node as usize] += left * (s * self.inv_mass[node as usize]);
-                    }
-                }
-                for (side, point) in sides.iter().zip(&points) {
-                    let (f, sum, _) = *side;
-                    if f != NO_FRAME && sum != 0.0 {
-                        let w = frames[f as usize].inverse_mass_at(*point, c.normal);
-                        keep_apart(&mut frame_rest[f as usize], left * (sum * w));
-                    }
-                }
-                out.rested |= allowed < push;
-                push = allowed;
-            } else if start < self.gap {
-                push = allowed;
-            }
-            out.touched = true;
-            out.depth = out.depth.max(-gap);
-            if push <= 0.0 {
-                continue;
-            }
-            let slip = tangential(d + c.normal * push - d_prev, &c.normal);
-            let removed = friction(slip, self.friction * push);
-            let correction = c.normal * push - removed;
-            if let Some(done) = done.get_mut(i) {
-                done.normal = push;
-                done.friction = -removed;
-            }
-            let marks = (&mut *moved, &mut *by_bodies, &mut *shift);
-            self.apply((stencil, frame_of), correction, inverse_mass, x, marks);
-            for (side, point) in sides.iter().zip(&points) {
-                if side.0 != NO_FRAME && side.1 != 0.0 {
-                    frames[side.0 as usize].push(*point, correction * (side.1 / inverse_mass));
-                }
-            }
-        }
-        if !done.is_empty() {
-            let pushed = done.iter().map(|d| d.normal).fold(0.0, f64::max);
-            let front = self.gap * (CONSTRAINT_FRONT - REST_GAP_LAYERS) / REST_GAP_LAYERS;
-            let reach = (SETTLE_REACH * pushed).min(front);
-            for _ in 1..CONTACT_PASSES {
-                let marks = (&mut *moved, &mut *by_bodies, &mut *shift);
-                self.settle(&mut done, reach, x, marks, &mut out);
+        {
+            let nodes = nodes(x, moved, by_bodies, shift, rest);
+            let mut sides = FrameSides {
+                frames,
+                frame_of,
+                supports: &supports,
+                frame_rest: &mut frame_rest,
+            };
+            for c in self.constraints {
+                // SAFETY: one task, this thread's.
+                #[allow(unsafe_code)]
+                unsafe {
+                    self.first(c, &nodes, &mut sides, None, &mut out)
+                };
             }
         }
         apply_frames(frames, x, shift, moved);
@@ -309,42 +318,235 @@ impl BodyContacts<'_> {
         out
     }
 
-    /// One more pass over the constraints the first pass kept in `done` that it pushed or
-    /// found within `reach` beyond their gap: each is brought to its target gap again, taking
-    /// back what it was pushed too far, never more than it pushed in all, and its friction is
-    /// kept within μ times its push in all (module docs).
-    fn settle(
+    /// [`Self::solve`] in a world without held or rigid bodies: [`CONTACT_PASSES`] passes,
+    /// those after the first taking back what it pushed too far ([`Self::settle`]), each pass
+    /// a colour of pairs at a time, the colour's pairs side by side on the team.
+    fn solve_in_colours(&self, nodes: &Nodes) -> Touch {
+        let mut done = vec![Done::default(); self.constraints.len()];
+        let mut touches = vec![Touch::default(); self.colours.groups.len()];
+        {
+            let (done, touches) = (Disjoint::new(&mut done), Disjoint::new(&mut touches));
+            self.in_colours(|g, group| {
+                let mut out = Touch::default();
+                let mut sides = FrameSides {
+                    frames: &mut [],
+                    frame_of: &[],
+                    supports: &[],
+                    frame_rest: &mut [],
+                };
+                for i in group {
+                    // SAFETY: a group's constraints and their nodes are its task's alone.
+                    #[allow(unsafe_code)]
+                    unsafe {
+                        let mut d = done.get(i);
+                        let c = &self.constraints[i];
+                        self.first(c, nodes, &mut sides, Some(&mut d), &mut out);
+                        done.set(i, d);
+                    }
+                }
+                // SAFETY: group `g` is this task's alone.
+                #[allow(unsafe_code)]
+                unsafe {
+                    touches.set(g, out)
+                };
+            });
+        }
+        let pushed = done.iter().map(|d| d.normal).fold(0.0, f64::max);
+        let front = self.gap * (CONSTRAINT_FRONT - REST_GAP_LAYERS) / REST_GAP_LAYERS;
+        let reach = (SETTLE_REACH * pushed).min(front);
+        let (done, touches) = (Disjoint::new(&mut done), Disjoint::new(&mut touches));
+        for _ in 1..CONTACT_PASSES {
+            self.in_colours(|g, group| {
+                // SAFETY: as in the first pass.
+                #[allow(unsafe_code)]
+                unsafe {
+                    let mut out = touches.get(g);
+                    for i in group {
+                        let mut d = done.get(i);
+                        self.settle(&self.constraints[i], &mut d, reach, nodes, &mut out);
+                        done.set(i, d);
+                    }
+                    touches.set(g, out);
+                }
+            });
+        }
+        // SAFETY: the passes are over.
+        #[allow(unsafe_code)]
+        (0..touches.len()).fold(Touch::default(), |t, g| both(t, unsafe { touches.get(g) }))
+    }
+
+    /// Run `task(g, its constraints)` for every group `g` of the constraints' colours
+    /// ([`ConstraintColours`]), a colour at a time, the colour's groups side by side on the
+    /// team (those of a serial colour as one task, in order).
+    fn in_colours(&self, task: impl Fn(usize, Range<usize>) + Sync) {
+        let colours = self.colours;
+        let mut first = 0;
+        for (colour, groups) in colours.colours().enumerate() {
+            let serial = colours.serial_last && colour + 1 == colours.ends.len();
+            let run = |g: usize| {
+                let group = &groups[g];
+                task(first + g, group.start as usize..group.end as usize);
+            };
+            if serial {
+                (0..groups.len()).for_each(run);
+            } else {
+                team::for_each(Tasks(groups.len()), |g, ()| run(g));
+            }
+            first += groups.len();
+        }
+    }
+
+    /// The first pass at constraint `c`: its features brought to the gap (or opened by
+    /// `opening` at most, module docs), with friction, the held or rigid sides moved as
+    /// frames. What it did goes to `done`, for the later passes, where there are any.
+    ///
+    /// # Safety
+    /// No other task of the pass touches the nodes of `c`'s stencil.
+    #[allow(unsafe_code)]
+    unsafe fn first(
         &self,
-        done: &mut [Done],
-        reach: f64,
-        x: &mut [V3],
-        marks: (&mut [bool], &mut [bool], &mut [V3]),
+        c: &BodyConstraint,
+        nodes: &Nodes,
+        fs: &mut FrameSides,
+        mut done: Option<&mut Done>,
         out: &mut Touch,
     ) {
-        let (moved, by_bodies, shift) = marks;
-        for (c, done) in self.constraints.iter().zip(done.iter_mut()) {
-            if done.inverse_mass <= 0.0 || !(done.normal > 0.0 || done.gap < self.gap + reach) {
-                continue;
-            }
-            let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
-            let d: V3 = stencil.iter().map(|&(k, s)| x[k as usize] * s).sum();
-            let gap = c.normal.dot(&d);
-            let push = (done.target - gap).max(-done.normal);
-            if push == 0.0 && done.normal == 0.0 {
-                continue;
-            }
-            if gap < self.gap {
-                out.touched = true;
-                out.depth = out.depth.max(-gap);
-            }
-            let normal = done.normal + push;
-            let slip = tangential(d + c.normal * push - done.previous, &c.normal);
-            let friction = clamp_length(done.friction - slip, self.friction * normal);
-            let correction = c.normal * push + friction - done.friction;
-            (done.normal, done.friction) = (normal, friction);
-            let marks = (&mut *moved, &mut *by_bodies, &mut *shift);
-            self.apply((stencil, &[]), correction, done.inverse_mass, x, marks);
+        let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
+        if between_frames(stencil, &|k| fs.frame(k)) {
+            return; // solved with the other frame pairs
         }
+        let (mut d, mut d_prev, mut inverse_mass) = (V3::zeros(), V3::zeros(), 0.0);
+        // Up to two sides moved as frames: (frame, summed weight, weighted point).
+        let mut sides = [(NO_FRAME, 0.0, V3::zeros()); 2];
+        for &(node, s) in stencil {
+            let k = node as usize;
+            d_prev += self.previous[k] * s;
+            // SAFETY: the caller's.
+            let xk = unsafe { nodes.x(k) };
+            let f = fs.frame(k);
+            if f == NO_FRAME {
+                d += xk * s;
+                inverse_mass += s * s * self.inv_mass[k];
+                continue;
+            }
+            let xk = fs.frames[f as usize].moved(xk);
+            d += xk * s;
+            let slot = usize::from(sides[0].0 != NO_FRAME && sides[0].0 != f);
+            sides[slot].0 = f;
+            sides[slot].1 += s;
+            sides[slot].2 += xk * s;
+        }
+        let mut points = [V3::zeros(); 2];
+        for (side, point) in sides.iter_mut().zip(&mut points) {
+            let (f, sum, weighted) = *side;
+            if f != NO_FRAME && sum != 0.0 {
+                *point = weighted / sum;
+                let support = fs.supports.get(f as usize).and_then(Option::as_ref);
+                if support.is_some_and(|s| s.holds(*point, c.normal * sum)) {
+                    side.1 = 0.0; // it does not move (see `supports`)
+                    continue;
+                }
+                let w = fs.frames[f as usize].inverse_mass_at(*point, c.normal);
+                inverse_mass += sum * sum * w;
+            }
+        }
+        if inverse_mass <= 0.0 {
+            return;
+        }
+        let gap = c.normal.dot(&d);
+        // Opened by `opening` at most beyond where the substep started (module docs).
+        let start = c.normal.dot(&d_prev);
+        if let Some(done) = done.as_deref_mut().filter(|_| !gap.is_nan()) {
+            *done = Done::new(d_prev, inverse_mass, (gap, self.target(start)));
+        }
+        if gap >= self.gap || gap.is_nan() {
+            return;
+        }
+        let mut push = self.gap - gap;
+        let allowed = (start + self.opening - gap).clamp(0.0, push);
+        let separating = self
+            .separating
+            .is_some_and(|overlapping| stencil.iter().any(|&(k, _)| overlapping[k as usize]));
+        if separating {
+            let left = c.normal * ((push - allowed) / inverse_mass);
+            for &(node, s) in stencil {
+                let k = node as usize;
+                if fs.frame(k) == NO_FRAME {
+                    // SAFETY: the caller's.
+                    unsafe { nodes.leave_to_rest(k, left * (s * self.inv_mass[k])) };
+                }
+            }
+            for (side, point) in sides.iter().zip(&points) {
+                let (f, sum, _) = *side;
+                if f != NO_FRAME && sum != 0.0 {
+                    let w = fs.frames[f as usize].inverse_mass_at(*point, c.normal);
+                    keep_apart(&mut fs.frame_rest[f as usize], left * (sum * w));
+                }
+            }
+            out.rested |= allowed < push;
+            push = allowed;
+        } else if start < self.gap {
+            push = allowed;
+        }
+        out.touched = true;
+        out.depth = out.depth.max(-gap);
+        if push <= 0.0 {
+            return;
+        }
+        let slip = tangential(d + c.normal * push - d_prev, &c.normal);
+        let removed = friction(slip, self.friction * push);
+        let correction = c.normal * push - removed;
+        if let Some(done) = done {
+            done.normal = push;
+            done.friction = -removed;
+        }
+        // SAFETY: the caller's.
+        unsafe { self.apply((stencil, fs.frame_of), correction, inverse_mass, nodes) };
+        for (side, point) in sides.iter().zip(&points) {
+            if side.0 != NO_FRAME && side.1 != 0.0 {
+                fs.frames[side.0 as usize].push(*point, correction * (side.1 / inverse_mass));
+            }
+        }
+    }
+
+    /// One more pass at constraint `c`, where the first pass (`done`) pushed it or found it
+    /// within `reach` beyond its gap: brought to its target gap again, taking back what it
+    /// was pushed too far, never more than it pushed in all, its friction kept within μ times
+    /// its push in all (module docs).
+    ///
+    /// # Safety
+    /// No other task of the pass touches the nodes of `c`'s stencil.
+    #[allow(unsafe_code)]
+    unsafe fn settle(
+        &self,
+        c: &BodyConstraint,
+        done: &mut Done,
+        reach: f64,
+        nodes: &Nodes,
+        out: &mut Touch,
+    ) {
+        if done.inverse_mass <= 0.0 || !(done.normal > 0.0 || done.gap < self.gap + reach) {
+            return;
+        }
+        let stencil = &self.stencil[c.stencil.start as usize..c.stencil.end as usize];
+        // SAFETY: the caller's.
+        let d = unsafe { nodes.separation(stencil) };
+        let gap = c.normal.dot(&d);
+        let push = (done.target - gap).max(-done.normal);
+        if push == 0.0 && done.normal == 0.0 {
+            return;
+        }
+        if gap < self.gap {
+            out.touched = true;
+            out.depth = out.depth.max(-gap);
+        }
+        let normal = done.normal + push;
+        let slip = tangential(d + c.normal * push - done.previous, &c.normal);
+        let friction = clamp_length(done.friction - slip, self.friction * normal);
+        let correction = c.normal * push + friction - done.friction;
+        (done.normal, done.friction) = (normal, friction);
+        // SAFETY: the caller's.
+        unsafe { self.apply((stencil, &[]), correction, done.inverse_mass, nodes) };
     }
 
     /// The separation a contact whose features were `start` apart along its normal at the
@@ -357,24 +559,24 @@ impl BodyContacts<'_> {
     /// Move the elastic nodes of a constraint's `stencil` (those no frame moves, by
     /// `frame_of`) by `correction` of its separation, each by its weight over the
     /// constraint's `inverse_mass`, and mark them.
-    fn apply(
+    ///
+    /// # Safety
+    /// No other task of the pass touches the stencil's nodes.
+    #[allow(unsafe_code)]
+    unsafe fn apply(
         &self,
         (stencil, frame_of): (&[(u32, f64)], &[u32]),
         correction: V3,
         inverse_mass: f64,
-        x: &mut [V3],
-        (moved, by_bodies, shift): (&mut [bool], &mut [bool], &mut [V3]),
+        nodes: &Nodes,
     ) {
         for &(node, s) in stencil {
             let k = node as usize;
             if frame_of.get(k).is_some_and(|&f| f != NO_FRAME) {
                 continue;
             }
-            let step = correction * (s * self.inv_mass[k] / inverse_mass);
-            x[k] += step;
-            shift[k] += step;
-            moved[k] = true;
-            by_bodies[k] = true;
+            // SAFETY: the caller's.
+            unsafe { nodes.shift_node(k, correction * (s * self.inv_mass[k] / inverse_mass)) };
         }
     }
 }

@@ -1076,6 +1076,7 @@ fn body_contacts(world: &mut World, model: &mut Model, first: bool, dt: f64) -> 
     }
     let mut contacts = bodies::BodyContacts {
         constraints,
+        colours: world.body_contact.constraint_colours(),
         stencil,
         inv_mass: &model.inv_mass,
         previous: &model.previous,
