@@ -64,18 +64,30 @@ fn append_stencil(
     (a, b): (Feature, Feature),
 ) {
     let start = stencil.len();
-    for (feature, sign) in [(a, 1.0), (b, -1.0)] {
-        push_feature(stencil, meshes, surface, feature, sign);
-    }
-    merge_nodes(stencil, start);
+    push_feature(stencil, meshes, surface, a, 1.0);
+    let split = stencil.len();
+    push_feature(stencil, meshes, surface, b, -1.0);
+    merge_nodes(stencil, start, split);
 }
 
-/// Sort `stencil[start..]` by node (unless it is already: a sample's cell against a face in
-/// one cell of a body after it) and sum the weights of each node into one entry.
-fn merge_nodes(stencil: &mut Vec<(u32, f64)>, start: usize) {
+/// Sort `stencil[start..]` by node and sum the weights of each node into one entry. Where
+/// the two features' parts (split at `split`) are each in node order already (a sample's
+/// cell, a face in one cell), the second's nodes all after the first's or all before (two
+/// bodies), they are kept or swapped, not sorted.
+fn merge_nodes(stencil: &mut Vec<(u32, f64)>, start: usize, split: usize) {
     let part = &mut stencil[start..];
-    if part.windows(2).all(|w| w[0].0 < w[1].0) {
-        return;
+    let (first, second) = part.split_at(split - start);
+    let ordered = |p: &[(u32, f64)]| p.windows(2).all(|w| w[0].0 < w[1].0);
+    if ordered(first) && ordered(second) {
+        match (first.first(), first.last(), second.first(), second.last()) {
+            (_, Some(last), Some(next), _) if last.0 < next.0 => return,
+            (Some(head), _, _, Some(tail)) if tail.0 < head.0 => {
+                part.rotate_left(split - start);
+                return;
+            }
+            (None, ..) | (.., None) => return,
+            _ => {}
+        }
     }
     part.sort_unstable_by_key(|&(node, _)| node);
     let mut kept = start;
@@ -176,5 +188,52 @@ impl BodyContact {
     /// The groups of [`Self::constraints`] by colour ([`super::colours`]).
     pub(crate) fn constraint_colours(&self) -> &super::colours::ConstraintColours {
         &self.colours
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::merge_nodes;
+
+    /// `merge_nodes` by sorting alone.
+    fn sorted(parts: &[(u32, f64)]) -> Vec<(u32, f64)> {
+        let mut all = parts.to_vec();
+        all.sort_by_key(|&(node, _)| node);
+        let mut out: Vec<(u32, f64)> = Vec::new();
+        for (node, w) in all {
+            match out.last_mut() {
+                Some(last) if last.0 == node => last.1 += w,
+                _ => out.push((node, w)),
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn merged_stencils_are_in_node_order_each_node_once() {
+        let cell = |base: u32, sign: f64| -> Vec<(u32, f64)> {
+            [0, 1, 4, 5, 16, 17, 20, 21]
+                .iter()
+                .map(|&o| (base + o, sign * (0.1 + o as f64)))
+                .collect()
+        };
+        let spread = vec![(70, -0.5), (66, -0.25), (70, -0.125), (3, -1.0)];
+        for (a, b) in [
+            (cell(0, 1.0), cell(64, -1.0)),  // in order
+            (cell(64, 1.0), cell(0, -1.0)),  // swapped
+            (cell(0, 1.0), cell(2, -1.0)),   // interleaved
+            (cell(64, 1.0), spread.clone()), // a face across cells
+            (Vec::new(), cell(0, -1.0)),     // one side empty
+            (cell(0, 1.0), Vec::new()),
+        ] {
+            let mut stencil = vec![(999, 9.0)];
+            stencil.extend(&a);
+            let split = stencil.len();
+            stencil.extend(&b);
+            merge_nodes(&mut stencil, 1, split);
+            let parts: Vec<_> = a.iter().chain(&b).copied().collect();
+            assert_eq!(stencil[0], (999, 9.0), "before `start` untouched");
+            assert_eq!(&stencil[1..], &sorted(&parts)[..], "{a:?} {b:?}");
+        }
     }
 }
