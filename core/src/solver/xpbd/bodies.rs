@@ -70,6 +70,11 @@ type V3 = Vector3<f64>;
 /// A point a little way off an edge has the direction to it, the same from both faces.
 pub(crate) const REST_GAP_LAYERS: f64 = 0.1;
 
+/// Fewer constraints than this in a colour are met on the calling thread, not shared with
+/// the team: handing out a pass costs some microseconds, about what a few hundred
+/// constraints take (a pile's tail colours held a pair or two of 20–100 constraints).
+const SHARED_COLOUR: u32 = 256;
+
 /// `frame_of`'s mark of a node that no held or rigid body's frame moves.
 pub(crate) const NO_FRAME: u32 = u32::MAX;
 
@@ -377,12 +382,14 @@ impl BodyContacts<'_> {
 
     /// Run `task(g, its constraints)` for every group `g` of the constraints' colours
     /// ([`ConstraintColours`]), a colour at a time, the colour's groups side by side on the
-    /// team (those of a serial colour as one task, in order).
+    /// team (those of a serial colour, or of one with fewer than [`SHARED_COLOUR`]
+    /// constraints in all, in order on this thread: the same bits either way).
     fn in_colours(&self, task: impl Fn(usize, Range<usize>) + Sync) {
         let colours = self.colours;
         let mut first = 0;
         for (colour, groups) in colours.colours().enumerate() {
-            let serial = colours.serial_last && colour + 1 == colours.ends.len();
+            let small = groups.iter().map(|g| g.end - g.start).sum::<u32>() < SHARED_COLOUR;
+            let serial = small || colours.serial_last && colour + 1 == colours.ends.len();
             let run = |g: usize| {
                 let group = &groups[g];
                 task(first + g, group.start as usize..group.end as usize);
