@@ -47,9 +47,7 @@ impl ConstraintColours {
             pair_ends.last().map_or(0, |&e| e as usize),
             constraints.len()
         );
-        self.groups.clear();
-        self.ends.clear();
-        self.serial_last = false;
+        self.clear();
         self.colour_of.clear();
         if self.taken.len() < nodes {
             self.taken.resize(nodes, 0);
@@ -91,6 +89,13 @@ impl ConstraintColours {
             }
             self.ends.push(self.groups.len() as u32);
         }
+    }
+
+    /// No groups (the marks are clear already).
+    pub(crate) fn clear(&mut self) {
+        self.groups.clear();
+        self.ends.clear();
+        self.serial_last = false;
     }
 
     /// Each colour's groups, in order.

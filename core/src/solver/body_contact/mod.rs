@@ -497,6 +497,7 @@ pub(crate) fn contact_pass(bc: &mut BodyContact, log: &mut ContactLog, input: &P
     bc.constraints.clear();
     bc.stencil.clear();
     bc.pair_ends.clear();
+    bc.colours.clear();
     if !bc.any() {
         return;
     }
