@@ -188,7 +188,34 @@ struct Nodes<'a> {
     rest: Disjoint<'a, V3>,
 }
 
-// Every method's contract: no other task of the pass touches the nodes it is given.
+impl<'a> Nodes<'a> {
+    /// The arrays, one entry per node each (panics if their lengths differ).
+    fn new(
+        x: &'a mut [V3],
+        (moved, by_bodies, shift, rest): (
+            &'a mut [bool],
+            &'a mut [bool],
+            &'a mut [V3],
+            &'a mut [V3],
+        ),
+    ) -> Self {
+        let n = x.len();
+        assert!(
+            [moved.len(), by_bodies.len(), shift.len(), rest.len()] == [n; 4],
+            "node arrays of different lengths"
+        );
+        Nodes {
+            x: Disjoint::new(x),
+            moved: Disjoint::new(moved),
+            by_bodies: Disjoint::new(by_bodies),
+            shift: Disjoint::new(shift),
+            rest: Disjoint::new(rest),
+        }
+    }
+}
+
+// Every method's contract: no other task of the pass touches the nodes it is given. Each
+// checks its node against the one length all five arrays share (`Nodes::new`) once.
 #[allow(unsafe_code)]
 impl Nodes<'_> {
     /// Node `k`'s position.
@@ -217,12 +244,14 @@ impl Nodes<'_> {
     /// # Safety
     /// No other task of the pass touches node `k`.
     unsafe fn shift_node(&self, k: usize, step: V3) {
-        // SAFETY: the caller's.
+        assert!(k < self.x.len(), "node {k} out of {}", self.x.len());
+        // SAFETY: `k` is within every array (one length, `new`); the rest is the caller's.
         unsafe {
-            self.x.set(k, self.x.get(k) + step);
-            self.shift.set(k, self.shift.get(k) + step);
-            self.moved.set(k, true);
-            self.by_bodies.set(k, true);
+            self.x.set_unchecked(k, self.x.get_unchecked(k) + step);
+            self.shift
+                .set_unchecked(k, self.shift.get_unchecked(k) + step);
+            self.moved.set_unchecked(k, true);
+            self.by_bodies.set_unchecked(k, true);
         }
     }
 
@@ -274,15 +303,8 @@ impl BodyContacts<'_> {
         (moved, by_bodies, shift, rest): (&mut [bool], &mut [bool], &mut [V3], &mut [V3]),
         (frames, frame_of): (&mut [RigidFrame], &[u32]),
     ) -> Touch {
-        let nodes = |x, moved, by_bodies, shift, rest| Nodes {
-            x: Disjoint::new(x),
-            moved: Disjoint::new(moved),
-            by_bodies: Disjoint::new(by_bodies),
-            shift: Disjoint::new(shift),
-            rest: Disjoint::new(rest),
-        };
         if frames.is_empty() {
-            return self.solve_in_colours(&nodes(x, moved, by_bodies, shift, rest));
+            return self.solve_in_colours(&Nodes::new(x, (moved, by_bodies, shift, rest)));
         }
         let mut out = Touch::default();
         // Per frame, the move its separating contacts leave to `rest` (see `keep_apart`).
@@ -299,7 +321,7 @@ impl BodyContacts<'_> {
         // held one crept 2 mm a second (the two orders' friction did not cancel), and a stack
         // of six rubber boxes fell sooner.
         {
-            let nodes = nodes(x, moved, by_bodies, shift, rest);
+            let nodes = Nodes::new(x, (&mut *moved, &mut *by_bodies, &mut *shift, &mut *rest));
             let mut sides = FrameSides {
                 frames,
                 frame_of,
@@ -343,7 +365,7 @@ impl BodyContacts<'_> {
                     // SAFETY: a group's constraints and their nodes are its task's alone.
                     #[allow(unsafe_code)]
                     unsafe {
-                        let mut d = done.get(i);
+                        let mut d = Done::default();
                         let c = &self.constraints[i];
                         self.first(c, nodes, &mut sides, Some(&mut d), &mut out);
                         done.set(i, d);
